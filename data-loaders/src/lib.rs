@@ -1,0 +1,17 @@
+//! File formats in, sample sets out.
+//!
+//! Each format module reads a measured BRDF file into a table that keeps the
+//! file's own values (so writing it back is byte-identical), and turns the
+//! table into a [`MeasuredSamples`]: the valid measurements with their
+//! directions, in physical units (1/sr). Everything model-specific (weights,
+//! interpolation stencils) is built from that set by the `npf` crate.
+
+pub mod atomic;
+pub mod error;
+pub mod geometry;
+pub mod merl;
+pub mod samples;
+
+pub use error::LoadError;
+pub use merl::MerlTable;
+pub use samples::{MeasuredSample, MeasuredSamples};

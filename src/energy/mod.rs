@@ -1,0 +1,1 @@
+//! Energy compensation: albedo tables, multiple-scattering lobe, furnace checks.

@@ -1,0 +1,11 @@
+//! npf: fit measured BRDFs with the shared-factor non-parametric microfacet model.
+//!
+//! Data flow, one module per concept:
+//! `npf_data_loaders` (formats) → [`samples`] (weights, stencils) → [`model`]
+//! → [`solver`] (AWLS) → [`modelfile`] (export) / [`sampling`] (renderers).
+//! [`energy`] holds the energy-compensation toolkit.
+
+pub mod cli;
+pub mod energy;
+
+pub use npf_data_loaders as loaders;
