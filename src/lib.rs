@@ -6,6 +6,10 @@
 //! [`energy`] holds the energy-compensation toolkit.
 
 pub mod cli;
+pub mod interp;
+pub mod model;
+pub mod samples;
+pub mod solver;
 pub mod energy;
 
 pub use npf_data_loaders as loaders;

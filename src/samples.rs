@@ -1,0 +1,362 @@
+//! The weighted sample set a fit runs on.
+//!
+//! Built once from measured samples: every valid sample with its RGB value,
+//! per-channel weight and the interpolation stencils of every factor (D and F
+//! cells, the Catmull-Rom control points of G at theta_i and theta_o), plus,
+//! per table entry, the list of samples that touch it. The solver only reads
+//! these arrays; it never recomputes geometry.
+//!
+//! Reciprocal pairs: the isotropic model depends on (theta_h, theta_d) and on
+//! {theta_i, theta_o} as an unordered pair, so the configurations phi_d and
+//! pi - phi_d (which swap theta_i and theta_o) always get the same model
+//! value. Two samples with the same model value y_1, y_2 and weights w_1, w_2
+//! contribute w_1 (m - y_1)^2 + w_2 (m - y_2)^2 = W (m - y)^2 + c with
+//! W = w_1 + w_2, y = (w_1 y_1 + w_2 y_2) / W and c = w_1 w_2 (y_1 - y_2)^2 / W,
+//! so merging them halves the work and leaves every update exactly the same;
+//! c is kept in `objective_offset` so reported objectives are the true ones.
+
+use crate::interp::Stencil;
+use crate::model::Layout;
+use npf_data_loaders::MeasuredSamples;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+
+/// How residuals are weighted in the least-squares objective.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Weighting {
+    /// w = (cos theta_i / (rho cos theta_i + eps))^2: the linearisation of the
+    /// squared error of log(rho cos theta_i + eps), i.e. relative error on
+    /// cosine-weighted values with an absolute floor eps. Rendered radiance is
+    /// rho cos, and the eye and tone mapping judge it roughly relatively, so
+    /// a peak of 1e4 and a diffuse value of 1e-2 both count; eps stops
+    /// near-black samples from dominating. It depends only on the data, so
+    /// every AWLS element update stays an exact weighted least-squares solve.
+    Compressive,
+    /// w = cos^2 theta_i: plain L2 on cosine-weighted values (dominated by
+    /// specular peaks).
+    CosineL2,
+    /// w = 1: plain L2 on BRDF values.
+    Uniform,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleOptions {
+    pub weighting: Weighting,
+    /// The floor eps of the compressive weight, in 1/sr (cosine-weighted).
+    pub epsilon: f64,
+    /// Grazing cut-off: samples with theta_i or theta_o above this angle
+    /// (degrees) are left out of the fit. Measurements near the horizon are
+    /// the noisiest and matter least in renderings (they are foreshortened).
+    pub max_theta_deg: f64,
+}
+
+impl Default for SampleOptions {
+    fn default() -> Self {
+        SampleOptions { weighting: Weighting::Compressive, epsilon: 1e-3, max_theta_deg: 85.0 }
+    }
+}
+
+impl SampleOptions {
+    pub fn weight(&self, rho: f64, cos_i: f64) -> f64 {
+        match self.weighting {
+            Weighting::Compressive => (cos_i / (rho * cos_i + self.epsilon)).powi(2),
+            Weighting::CosineL2 => cos_i * cos_i,
+            Weighting::Uniform => 1.0,
+        }
+    }
+}
+
+/// For each table entry, the samples that touch it and with which weight
+/// (CSR layout), plus a colouring: entries of one colour share no sample, so
+/// their element updates are independent and may run in parallel.
+#[derive(Clone, Debug, Default)]
+pub struct Incidence {
+    pub start: Vec<usize>,
+    pub sample: Vec<u32>,
+    pub weight: Vec<f64>,
+    pub colors: Vec<Vec<usize>>,
+    /// Whether any sample with non-zero weight touches the entry.
+    pub has_data: Vec<bool>,
+}
+
+impl Incidence {
+    pub fn entries(&self, k: usize) -> std::ops::Range<usize> {
+        self.start[k]..self.start[k + 1]
+    }
+
+    fn build(cells: usize, stencils: &[Stencil], total_w: &[f64]) -> Self {
+        let mut count = vec![0usize; cells];
+        for st in stencils {
+            for (k, _) in st.entries() {
+                count[k] += 1;
+            }
+        }
+        let mut start = vec![0usize; cells + 1];
+        for k in 0..cells {
+            start[k + 1] = start[k] + count[k];
+        }
+        let mut fill = start.clone();
+        let mut sample = vec![0u32; start[cells]];
+        let mut weight = vec![0.0; start[cells]];
+        let mut has_data = vec![false; cells];
+        let mut conflict = vec![false; cells * cells];
+        for (j, st) in stencils.iter().enumerate() {
+            for (k, w) in st.entries() {
+                sample[fill[k]] = j as u32;
+                weight[fill[k]] = w;
+                fill[k] += 1;
+                has_data[k] |= total_w[j] > 0.0;
+                for (k2, _) in st.entries() {
+                    conflict[k * cells + k2] = true;
+                }
+            }
+        }
+        // Greedy colouring in index order: deterministic and, for 1-D linear
+        // stencils, the two parities.
+        let mut color_of = vec![usize::MAX; cells];
+        let mut colors: Vec<Vec<usize>> = Vec::new();
+        for k in 0..cells {
+            let c = (0..)
+                .find(|&c| colors.get(c).map_or(true, |members: &Vec<usize>| members.iter().all(|&k2| !conflict[k * cells + k2])))
+                .unwrap();
+            if c == colors.len() {
+                colors.push(Vec::new());
+            }
+            colors[c].push(k);
+            color_of[k] = c;
+        }
+        Incidence { start, sample, weight, colors, has_data }
+    }
+}
+
+/// For each G control point, the samples whose G(theta_i) (weight u) or
+/// G(theta_o) (weight v) use it. Both appear in one entry.
+#[derive(Clone, Debug, Default)]
+pub struct GIncidence {
+    pub start: Vec<usize>,
+    pub sample: Vec<u32>,
+    pub u: Vec<f64>,
+    pub v: Vec<f64>,
+    pub has_data: Vec<bool>,
+}
+
+impl GIncidence {
+    pub fn entries(&self, k: usize) -> std::ops::Range<usize> {
+        self.start[k]..self.start[k + 1]
+    }
+
+    fn build(nodes: usize, gi: &[Stencil], go: &[Stencil], total_w: &[f64]) -> Self {
+        let mut per_node: Vec<Vec<(u32, f64, f64)>> = vec![Vec::new(); nodes];
+        for j in 0..gi.len() {
+            let mut touched: [(usize, f64, f64); 8] = [(usize::MAX, 0.0, 0.0); 8];
+            let mut n = 0;
+            for (k, w) in gi[j].entries() {
+                touched[n] = (k, w, 0.0);
+                n += 1;
+            }
+            for (k, w) in go[j].entries() {
+                match touched[..n].iter_mut().find(|t| t.0 == k) {
+                    Some(t) => t.2 = w,
+                    None => {
+                        touched[n] = (k, 0.0, w);
+                        n += 1;
+                    }
+                }
+            }
+            for &(k, u, v) in &touched[..n] {
+                per_node[k].push((j as u32, u, v));
+            }
+        }
+        let mut g = GIncidence { start: vec![0], ..Default::default() };
+        for list in per_node {
+            let mut data = false;
+            for (j, u, v) in list {
+                g.sample.push(j);
+                g.u.push(u);
+                g.v.push(v);
+                data |= total_w[j as usize] > 0.0;
+            }
+            g.has_data.push(data);
+            g.start.push(g.sample.len());
+        }
+        g
+    }
+}
+
+/// Counts of what happened to the input samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SampleStats {
+    /// Valid samples in the source.
+    pub input: usize,
+    /// Left out by the grazing cut-off.
+    pub cut: usize,
+    /// Reciprocal pairs merged into one sample.
+    pub merged_pairs: usize,
+    /// Samples the solver sees.
+    pub fitted: usize,
+}
+
+/// Everything the solver reads, built once.
+#[derive(Clone, Debug)]
+pub struct FitSet {
+    pub layout: Layout,
+    pub options: SampleOptions,
+    pub y: Vec<[f64; 3]>,
+    pub w: Vec<[f64; 3]>,
+    /// 1 / (cos theta_i cos theta_o).
+    pub inv_cc: Vec<f64>,
+    pub d_st: Vec<Stencil>,
+    pub f_st: Vec<Stencil>,
+    pub gi_st: Vec<Stencil>,
+    pub go_st: Vec<Stencil>,
+    pub d_inc: Incidence,
+    pub f_inc: Incidence,
+    pub g_inc: GIncidence,
+    /// Constant part of the objective from merged pairs.
+    pub objective_offset: f64,
+    pub stats: SampleStats,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SampleError {
+    #[error("{source_name}: sample {index} has a non-finite or negative value {value}")]
+    BadValue { source_name: String, index: usize, value: f64 },
+    #[error("{source_name}: no valid samples left to fit ({input} valid in the input, {cut} beyond the {max_theta_deg} degree cut-off)")]
+    Empty { source_name: String, input: usize, cut: usize, max_theta_deg: f64 },
+    #[error("bad sample options: {0}")]
+    Options(String),
+}
+
+struct Raw {
+    key: (i64, i64, i64, i64),
+    y: [f64; 3],
+    w: [f64; 3],
+    theta_i: f64,
+    theta_o: f64,
+    theta_h: f64,
+    theta_d: f64,
+}
+
+impl FitSet {
+    pub fn build(samples: &MeasuredSamples, layout: Layout, options: SampleOptions) -> Result<Self, SampleError> {
+        if !(options.epsilon > 0.0 && options.epsilon.is_finite()) {
+            return Err(SampleError::Options(format!("epsilon must be positive, got {}", options.epsilon)));
+        }
+        if !(options.max_theta_deg > 0.0 && options.max_theta_deg <= 90.0) {
+            return Err(SampleError::Options(format!("the cut-off must be in (0, 90] degrees, got {}", options.max_theta_deg)));
+        }
+        let cut = options.max_theta_deg.to_radians();
+        let mut stats = SampleStats { input: samples.samples.len(), ..Default::default() };
+        let q = |x: f64| (x * 1e7).round() as i64;
+        let mut raws: Vec<Raw> = Vec::with_capacity(samples.samples.len());
+        for (index, s) in samples.samples.iter().enumerate() {
+            if let Some(&value) = s.rgb.iter().find(|v| !v.is_finite() || **v < 0.0) {
+                return Err(SampleError::BadValue { source_name: samples.source.clone(), index, value });
+            }
+            let a = &s.angles;
+            let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
+            if a.theta_i > cut || a.theta_o > cut || ci <= 0.0 || co <= 0.0 {
+                stats.cut += 1;
+                continue;
+            }
+            let w = s.rgb.map(|v| options.weight(v, ci));
+            let (lo, hi) = if a.theta_i <= a.theta_o { (a.theta_i, a.theta_o) } else { (a.theta_o, a.theta_i) };
+            raws.push(Raw {
+                key: (q(a.theta_h), q(a.theta_d), q(lo), q(hi)),
+                y: s.rgb,
+                w,
+                theta_i: lo,
+                theta_o: hi,
+                theta_h: a.theta_h,
+                theta_d: a.theta_d,
+            });
+        }
+        if raws.is_empty() {
+            return Err(SampleError::Empty {
+                source_name: samples.source.clone(),
+                input: stats.input,
+                cut: stats.cut,
+                max_theta_deg: options.max_theta_deg,
+            });
+        }
+        // Merge reciprocal partners (first occurrence keeps its place).
+        let mut merged: Vec<Raw> = Vec::with_capacity(raws.len());
+        let mut offset = 0.0;
+        if samples.isotropic {
+            let mut seen: HashMap<(i64, i64, i64, i64), usize> = HashMap::with_capacity(raws.len());
+            for r in raws {
+                match seen.get(&r.key) {
+                    Some(&i) => {
+                        let m = &mut merged[i];
+                        for c in 0..3 {
+                            let wsum = m.w[c] + r.w[c];
+                            if wsum > 0.0 {
+                                offset += m.w[c] * r.w[c] * (m.y[c] - r.y[c]).powi(2) / wsum;
+                                m.y[c] = (m.w[c] * m.y[c] + r.w[c] * r.y[c]) / wsum;
+                            }
+                            m.w[c] = wsum;
+                        }
+                        stats.merged_pairs += 1;
+                    }
+                    None => {
+                        seen.insert(r.key, merged.len());
+                        merged.push(r);
+                    }
+                }
+            }
+        } else {
+            merged = raws;
+        }
+        // Order by theta_i then theta_o: the G control-point lists then read
+        // memory mostly forward.
+        merged.sort_by(|a, b| a.key.2.cmp(&b.key.2).then(a.key.3.cmp(&b.key.3)).then(a.key.0.cmp(&b.key.0)).then(a.key.1.cmp(&b.key.1)));
+        stats.fitted = merged.len();
+        let n = merged.len();
+        let mut set = FitSet {
+            layout,
+            options,
+            y: Vec::with_capacity(n),
+            w: Vec::with_capacity(n),
+            inv_cc: Vec::with_capacity(n),
+            d_st: Vec::with_capacity(n),
+            f_st: Vec::with_capacity(n),
+            gi_st: Vec::with_capacity(n),
+            go_st: Vec::with_capacity(n),
+            d_inc: Incidence::default(),
+            f_inc: Incidence::default(),
+            g_inc: GIncidence::default(),
+            objective_offset: offset,
+            stats,
+        };
+        for r in &merged {
+            set.y.push(r.y);
+            set.w.push(r.w);
+            set.inv_cc.push(1.0 / (r.theta_i.cos() * r.theta_o.cos()));
+            set.d_st.push(layout.d.stencil(r.theta_h));
+            set.f_st.push(layout.f.stencil(r.theta_d));
+            set.gi_st.push(layout.g.stencil(r.theta_i));
+            set.go_st.push(layout.g.stencil(r.theta_o));
+        }
+        let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
+        set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
+        set.f_inc = Incidence::build(layout.f.len(), &set.f_st, &total_w);
+        set.g_inc = GIncidence::build(layout.g.len(), &set.gi_st, &set.go_st, &total_w);
+        Ok(set)
+    }
+
+    pub fn len(&self) -> usize {
+        self.y.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.y.is_empty()
+    }
+
+    /// Approximate heap size in bytes, for reports.
+    pub fn heap_bytes(&self) -> usize {
+        let per_sample = 2 * 24 + 8 + 4 * std::mem::size_of::<Stencil>();
+        let inc = |i: &Incidence| i.sample.len() * 12 + i.start.len() * 8;
+        self.len() * per_sample + inc(&self.d_inc) + inc(&self.f_inc) + self.g_inc.sample.len() * 20
+    }
+}

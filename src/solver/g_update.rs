@@ -1,0 +1,197 @@
+//! Update of the G control points, one at a time (Gauss-Seidel).
+//!
+//! G^m(theta) is a Catmull-Rom spline, linear in each control value, so for
+//! one control point changed by t a sample's G(theta_i) G(theta_o) becomes
+//! alpha beta + P1 t + P2 t^2 with P1 = alpha v + beta u, P2 = u v (u, v: the
+//! point's weights at theta_i and theta_o). With B_C = s_C D F / (cos cos),
+//! S_r = sum_C w r B and S_a = sum_C w B^2, the change of the objective is
+//! exactly the quartic
+//!   dE(t) = c1 t + c2 t^2 + c3 t^3 + c4 t^4,
+//!   c1 = sum 2 S_r P1, c2 = sum S_a P1^2 + 2 S_r P2, c3 = sum 2 S_a P1 P2, c4 = sum S_a P2^2.
+//! Its derivative is a cubic; the update evaluates dE at every real root
+//! (found by the `roots` crate) and at the bound (control value 0), keeps the
+//! smallest, and applies it only if dE < 0. The quartic is not convex when a
+//! sample reads the point through both angles, which is why all roots count.
+//! Control points cannot be updated in parallel (any two can share a sample
+//! through a (theta_i, theta_o) pair); the sums inside one are parallel.
+
+use super::state::{Cache, State};
+use super::updates::{fill_scratch, Scratch};
+use super::{GMethod, CHUNK};
+use crate::samples::FitSet;
+use rayon::prelude::*;
+
+/// What one G pass did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GPassStats {
+    pub accepted: usize,
+    pub rejected: usize,
+    /// The largest (least negative) accepted change of the objective; always < 0.
+    pub worst_accepted: f64,
+}
+
+#[inline]
+fn quartic(c: &[f64; 4], t: f64) -> f64 {
+    (((c[3] * t + c[2]) * t + c[1]) * t + c[0]) * t
+}
+
+/// The best step for a control value `x` under the cubic rule.
+pub fn best_cubic_step(c: &[f64; 4], x: f64) -> f64 {
+    let mut cands: Vec<f64> = Vec::with_capacity(4);
+    cands.push(-x);
+    match roots::find_roots_cubic(4.0 * c[3], 3.0 * c[2], 2.0 * c[1], c[0]) {
+        roots::Roots::No(_) => {}
+        r => cands.extend(r.as_ref().iter().copied()),
+    }
+    let mut best = (0.0, 0.0);
+    for t in cands {
+        let t = if t.is_finite() { t.max(-x) } else { continue };
+        let de = quartic(c, t);
+        if de < best.1 {
+            best = (t, de);
+        }
+    }
+    best.0
+}
+
+/// Golden-section search of the control value over [0, hi].
+pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
+    let phi = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (0.0, hi.max(x));
+    let f = |v: f64| quartic(c, v - x);
+    let (mut x1, mut x2) = (b - phi * (b - a), a + phi * (b - a));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..60 {
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - phi * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + phi * (b - a);
+            f2 = f(x2);
+        }
+    }
+    let v = 0.5 * (a + b);
+    if quartic(c, v - x) < 0.0 {
+        v - x
+    } else {
+        0.0
+    }
+}
+
+pub(crate) fn update_g(set: &FitSet, st: &mut State, m: usize, method: GMethod, scratch: &mut Scratch) -> GPassStats {
+    let mut stats = GPassStats { worst_accepted: f64::NEG_INFINITY, ..Default::default() };
+    if method == GMethod::Fixed {
+        return stats;
+    }
+    let s = st.factors.s[m];
+    let coef = |c: &Cache, j: usize| {
+        let p = c.dv[m] * set.inv_cc[j];
+        [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
+    };
+    fill_scratch(set, &st.cache, scratch, coef, [true; 3]);
+    // Keep the old products to move the residuals once at the end.
+    scratch.delta.par_iter_mut().zip(&st.cache).for_each(|(d, c)| *d = c.gi[m] * c.go[m]);
+    let inc = &set.g_inc;
+    let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
+    for k in 0..inc.has_data.len() {
+        if !inc.has_data[k] {
+            continue;
+        }
+        let range = inc.entries(k);
+        let chunks = range.len().div_ceil(CHUNK);
+        let cache = &st.cache;
+        let sv = &scratch.s;
+        let partial: Vec<[f64; 4]> = (0..chunks)
+            .into_par_iter()
+            .map(|ci| {
+                let lo = range.start + ci * CHUNK;
+                let hi = (lo + CHUNK).min(range.end);
+                let mut acc = [0.0; 4];
+                for e in lo..hi {
+                    let j = inc.sample[e] as usize;
+                    let (u, v) = (inc.u[e], inc.v[e]);
+                    let c = &cache[j];
+                    let (sr, sa) = sv[j];
+                    let p1 = c.gi[m] * v + c.go[m] * u;
+                    let p2 = u * v;
+                    acc[0] += 2.0 * sr * p1;
+                    acc[1] += sa * p1 * p1 + 2.0 * sr * p2;
+                    acc[2] += 2.0 * sa * p1 * p2;
+                    acc[3] += sa * p2 * p2;
+                }
+                acc
+            })
+            .collect();
+        let mut c = [0.0; 4];
+        for p in partial {
+            for i in 0..4 {
+                c[i] += p[i];
+            }
+        }
+        let x = st.factors.g[m][k];
+        let t = match method {
+            GMethod::Cubic => best_cubic_step(&c, x),
+            GMethod::Golden => best_golden_step(&c, x, golden_hi),
+            GMethod::Fixed => unreachable!(),
+        };
+        let de = quartic(&c, t);
+        if t == 0.0 || !(de < 0.0) {
+            stats.rejected += 1;
+            continue;
+        }
+        stats.accepted += 1;
+        stats.worst_accepted = stats.worst_accepted.max(de);
+        st.factors.g[m][k] = x + t;
+        for e in range {
+            let j = inc.sample[e] as usize;
+            let (u, v) = (inc.u[e], inc.v[e]);
+            let c = &mut st.cache[j];
+            let p1 = c.gi[m] * v + c.go[m] * u;
+            let p2 = u * v;
+            let sj = &mut scratch.s[j];
+            sj.0 += sj.1 * (p1 * t + p2 * t * t);
+            c.gi[m] += u * t;
+            c.go[m] += v * t;
+        }
+    }
+    let old = &scratch.delta;
+    st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+        let change = c.gi[m] * c.go[m] - old[j];
+        if change != 0.0 {
+            let b = coef(c, j);
+            for ch in 0..3 {
+                c.r[ch] += b[ch] * change;
+            }
+        }
+    });
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cubic_step_is_the_global_minimum_over_the_feasible_range() {
+        // Non-convex quartics with two local minima.
+        for c in [[-1.0, -2.0, 0.5, 1.0], [0.3, -3.0, -0.2, 0.9], [2.0, 1.0, 0.0, 0.0], [-4.0, 1.0, 0.0, 0.0]] {
+            for x in [0.0, 0.5, 2.0] {
+                let t = best_cubic_step(&c, x);
+                assert!(t >= -x);
+                let mut grid_best = 0.0f64;
+                for i in 0..=40000 {
+                    let tt = -x + i as f64 * 1e-3;
+                    grid_best = grid_best.min(quartic(&c, tt));
+                }
+                assert!(quartic(&c, t) <= grid_best + 1e-9, "c={c:?} x={x}: {} vs {grid_best}", quartic(&c, t));
+                assert!(quartic(&c, t) <= 0.0);
+            }
+        }
+    }
+}

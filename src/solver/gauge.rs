@@ -1,0 +1,83 @@
+//! The canonical form of a model, and table entries without data.
+//!
+//! s, D, F and G trade scale: D -> aD, s -> s/a (and likewise F per channel,
+//! and G -> bG, s -> s/b^2) leave every model value unchanged. A model's one
+//! canonical form:
+//! - G^m: the largest control value among those constrained by data is 1
+//!   (G(0) = 1 would be fragile: few samples sit near normal incidence);
+//! - D^m: 2 pi * integral of D(theta_h) cos sin dtheta_h = 1, i.e. the
+//!   projected-area normalisation of a microfacet distribution, taken over
+//!   the interpolated table, so D can be sampled directly;
+//! - F_C: F_C(theta_d = 0) = 1 per channel (its maximum instead when F_C(0)
+//!   is not above 1e-6 of that maximum), so s_C^m carries colour and F its
+//!   angular shape.
+//! Entries no sample constrains are filled: D and F from the nearest entry
+//! with data; G before the first constrained point takes that value, and
+//! after the last it ramps linearly to 0 at 90 degrees, which keeps
+//! G/cos finite at grazing angles.
+
+use super::state::Factors;
+use crate::samples::FitSet;
+
+/// D normalisation weights: sum_k q_k D_k = 2 pi integral D cos sin.
+pub fn d_measure(set: &FitSet) -> Vec<f64> {
+    set.layout.d.quadrature_weights(|t| std::f64::consts::TAU * t.cos() * t.sin())
+}
+
+pub fn fill_unconstrained(f: &mut Factors, set: &FitSet) {
+    for m in 0..f.lobes() {
+        fill_nearest(&mut f.d[m], &set.d_inc.has_data);
+        fill_g(&mut f.g[m], &set.g_inc.has_data);
+    }
+    for ch in 0..3 {
+        fill_nearest(&mut f.f[ch], &set.f_inc.has_data);
+    }
+}
+
+fn fill_nearest(t: &mut [f64], has: &[bool]) {
+    let with: Vec<usize> = (0..t.len()).filter(|&k| has[k]).collect();
+    if with.is_empty() {
+        return;
+    }
+    for k in 0..t.len() {
+        if !has[k] {
+            let near = *with.iter().min_by_key(|&&i| (i as isize - k as isize).abs()).unwrap();
+            t[k] = t[near];
+        }
+    }
+}
+
+fn fill_g(g: &mut [f64], has: &[bool]) {
+    let (Some(first), Some(last)) = (has.iter().position(|&h| h), has.iter().rposition(|&h| h)) else { return };
+    for k in 0..first {
+        g[k] = g[first];
+    }
+    let n = g.len() - 1;
+    for k in last + 1..=n {
+        g[k] = g[last] * (n - k) as f64 / (n - last) as f64;
+    }
+}
+
+/// Rescale to the canonical form; leaves every model value unchanged.
+pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) {
+    for m in 0..f.lobes() {
+        let gmax = f.g[m].iter().zip(&set.g_inc.has_data).filter(|(_, &h)| h).map(|(&v, _)| v).fold(0.0, f64::max);
+        if gmax > 0.0 {
+            f.g[m].iter_mut().for_each(|v| *v /= gmax);
+            f.s[m].iter_mut().for_each(|v| *v *= gmax * gmax);
+        }
+        let integral: f64 = f.d[m].iter().zip(d_measure).map(|(v, q)| v * q).sum();
+        if integral > 0.0 {
+            f.d[m].iter_mut().for_each(|v| *v /= integral);
+            f.s[m].iter_mut().for_each(|v| *v *= integral);
+        }
+    }
+    for ch in 0..3 {
+        let fmax = f.f[ch].iter().cloned().fold(0.0, f64::max);
+        let f0 = if f.f[ch][0] > 1e-6 * fmax { f.f[ch][0] } else { fmax };
+        if f0 > 0.0 {
+            f.f[ch].iter_mut().for_each(|v| *v /= f0);
+            f.s.iter_mut().for_each(|s| s[ch] *= f0);
+        }
+    }
+}

@@ -1,0 +1,97 @@
+//! Alternating weighted least squares (AWLS) for the shared-factor model.
+//!
+//! Split as in argmin: [`state`] holds the working factors and per-sample
+//! caches, [`updates`] and [`g_update`] are the element updates one sweep is
+//! made of, [`executor`] loops sweeps until convergence and reports each one
+//! to [`Observer`]s. Every update minimises the objective exactly over the
+//! entries it changes (or, for G, keeps the best of the cubic's real roots
+//! and the bound, and only if it lowers the objective), so the objective
+//! never rises.
+//!
+//! Determinism: every parallel sum is taken over fixed-size chunks whose
+//! partial results are added in chunk order, and entries updated in
+//! parallel share no sample, so results are bit-for-bit identical for any
+//! number of threads.
+
+pub mod executor;
+pub mod g_update;
+pub mod gauge;
+pub mod init;
+pub mod state;
+pub mod updates;
+
+pub use executor::{Executor, FitResult, Observer, Stage, SweepReport};
+pub use state::Factors;
+
+use serde::{Deserialize, Serialize};
+
+/// The most specular lobes a model may have.
+pub const MAX_LOBES: usize = 3;
+
+/// How the G control points are updated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum GMethod {
+    /// Exact: the best real root of the cubic derivative (or the bound 0).
+    Cubic,
+    /// Golden-section search on each control point (Bagher et al.'s fallback).
+    Golden,
+    /// G stays at its initial Smith shape.
+    Fixed,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitOptions {
+    /// Specular lobes, 1 to 3.
+    pub lobes: usize,
+    pub max_sweeps: usize,
+    /// Stop when a sweep lowers the objective by less than this fraction.
+    pub tol: f64,
+    pub g_method: GMethod,
+    /// Gaussian smoothing of G (standard deviation in control points) after
+    /// each G update, kept only when it does not raise the objective.
+    pub smooth_g: Option<f64>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions { lobes: 3, max_sweeps: 100, tol: 1e-5, g_method: GMethod::Cubic, smooth_g: None }
+    }
+}
+
+impl FitOptions {
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1..=MAX_LOBES).contains(&self.lobes) {
+            return Err(format!("--lobes must be 1 to {MAX_LOBES}, got {}", self.lobes));
+        }
+        if self.max_sweeps == 0 {
+            return Err("--max-sweeps must be at least 1".into());
+        }
+        if !(self.tol >= 0.0 && self.tol.is_finite()) {
+            return Err(format!("--tol must be a non-negative number, got {}", self.tol));
+        }
+        if let Some(s) = self.smooth_g {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(format!("--smooth-g must be positive, got {s}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Fixed chunk size of every parallel reduction (see the module notes).
+pub(crate) const CHUNK: usize = 4096;
+
+/// Deterministic parallel sum of `f` over 0..n, in fixed chunks.
+pub(crate) fn chunked_sum<const K: usize>(n: usize, f: impl Fn(std::ops::Range<usize>) -> [f64; K] + Sync) -> [f64; K] {
+    use rayon::prelude::*;
+    let chunks = n.div_ceil(CHUNK);
+    let partial: Vec<[f64; K]> = (0..chunks).into_par_iter().map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(n))).collect();
+    let mut total = [0.0; K];
+    for p in partial {
+        for k in 0..K {
+            total[k] += p[k];
+        }
+    }
+    total
+}

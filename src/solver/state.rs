@@ -1,0 +1,114 @@
+//! Working factors (f64) and the per-sample caches the updates share.
+
+use super::{chunked_sum, MAX_LOBES};
+use crate::model::{Layout, Lobe, Model};
+use crate::samples::FitSet;
+use rayon::prelude::*;
+
+/// The model's parameters in working precision.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Factors {
+    pub layout: Layout,
+    pub diffuse: [f64; 3],
+    pub s: Vec<[f64; 3]>,
+    pub d: Vec<Vec<f64>>,
+    pub g: Vec<Vec<f64>>,
+    pub f: [Vec<f64>; 3],
+}
+
+impl Factors {
+    pub fn lobes(&self) -> usize {
+        self.s.len()
+    }
+
+    pub fn to_model(&self) -> Model {
+        let v = |t: &Vec<f64>| t.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        Model {
+            layout: self.layout,
+            diffuse: self.diffuse.map(|x| x as f32),
+            fresnel: [v(&self.f[0]), v(&self.f[1]), v(&self.f[2])],
+            lobes: (0..self.lobes()).map(|m| Lobe { s: self.s[m].map(|x| x as f32), d: v(&self.d[m]), g: v(&self.g[m]) }).collect(),
+        }
+    }
+
+    pub fn from_model(model: &Model) -> Self {
+        let v = |t: &Vec<f32>| t.iter().map(|&x| x as f64).collect::<Vec<f64>>();
+        Factors {
+            layout: model.layout,
+            diffuse: model.diffuse.map(f64::from),
+            s: model.lobes.iter().map(|l| l.s.map(f64::from)).collect(),
+            d: model.lobes.iter().map(|l| v(&l.d)).collect(),
+            g: model.lobes.iter().map(|l| v(&l.g)).collect(),
+            f: [v(&model.fresnel[0]), v(&model.fresnel[1]), v(&model.fresnel[2])],
+        }
+    }
+}
+
+/// Per-sample factor values and residual (model - data), kept in step with
+/// the factors by every update.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Cache {
+    pub dv: [f64; MAX_LOBES],
+    pub gi: [f64; MAX_LOBES],
+    pub go: [f64; MAX_LOBES],
+    pub fv: [f64; 3],
+    pub r: [f64; 3],
+}
+
+impl Cache {
+    /// s_C^m-free specular product of lobe m: D G G / (cos cos).
+    #[inline]
+    pub fn lobe_product(&self, m: usize, inv_cc: f64) -> f64 {
+        self.dv[m] * self.gi[m] * self.go[m] * inv_cc
+    }
+}
+
+pub struct State {
+    pub factors: Factors,
+    pub cache: Vec<Cache>,
+}
+
+impl State {
+    pub fn new(set: &FitSet, factors: Factors) -> Self {
+        let mut s = State { factors, cache: vec![Cache::default(); set.len()] };
+        s.refresh(set);
+        s
+    }
+
+    /// Recompute every cache from the factors (removes incremental drift).
+    pub fn refresh(&mut self, set: &FitSet) {
+        let f = &self.factors;
+        let lobes = f.lobes();
+        self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+            for m in 0..lobes {
+                c.dv[m] = set.d_st[j].apply(&f.d[m]);
+                c.gi[m] = set.gi_st[j].apply(&f.g[m]);
+                c.go[m] = set.go_st[j].apply(&f.g[m]);
+            }
+            for ch in 0..3 {
+                c.fv[ch] = set.f_st[j].apply(&f.f[ch]);
+            }
+            for ch in 0..3 {
+                let mut v = f.diffuse[ch];
+                for m in 0..lobes {
+                    v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+                }
+                c.r[ch] = v - set.y[j][ch];
+            }
+        });
+    }
+
+    /// The objective sum_j sum_C w (model - data)^2, including the constant
+    /// of merged reciprocal pairs.
+    pub fn objective(&self, set: &FitSet) -> f64 {
+        let [e] = chunked_sum(set.len(), |range| {
+            let mut e = 0.0;
+            for j in range {
+                let (c, w) = (&self.cache[j], &set.w[j]);
+                e += w[0] * c.r[0] * c.r[0] + w[1] * c.r[1] * c.r[1] + w[2] * c.r[2] * c.r[2];
+            }
+            [e]
+        });
+        e + set.objective_offset
+    }
+}

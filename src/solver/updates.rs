@@ -1,0 +1,253 @@
+//! Closed-form element updates of D, F, d and s.
+//!
+//! D and F enter the model linearly. For one table entry x with samples j
+//! that read it with interpolation weight omega_j, the model moves by
+//! A_jC omega_j dx, so the objective is a parabola in dx with minimum at
+//! dx = -sum_j omega_j S_r(j) / sum_j omega_j^2 S_a(j), where
+//! S_r = sum_C w_C r_C A_C and S_a = sum_C w_C A_C^2 (summed over the
+//! channels that share the entry). Clamping the new value at 0 is then the
+//! exact constrained minimum.
+
+use super::state::{Cache, State};
+use super::{chunked_sum, MAX_LOBES};
+use crate::samples::{FitSet, Incidence};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+/// Per-sample (S_r, S_a) and accumulated change of the entry's interpolated value.
+pub(crate) struct Scratch {
+    pub s: Vec<(f64, f64)>,
+    pub delta: Vec<f64>,
+}
+
+impl Scratch {
+    pub fn new(n: usize) -> Self {
+        Scratch { s: vec![(0.0, 0.0); n], delta: vec![0.0; n] }
+    }
+}
+
+/// One Gauss-Seidel pass over the entries of `table`, colour by colour;
+/// entries of one colour are solved in parallel. `scratch.s` must hold
+/// (S_r, S_a) for every sample; on return `scratch.delta` holds each sample's
+/// change of the interpolated value.
+pub(crate) fn linear_pass(inc: &Incidence, table: &mut [f64], scratch: &mut Scratch) {
+    scratch.delta.par_iter_mut().for_each(|d| *d = 0.0);
+    for color in &inc.colors {
+        let steps: Vec<f64> = color
+            .par_iter()
+            .map(|&k| {
+                let (mut num, mut den) = (0.0, 0.0);
+                for e in inc.entries(k) {
+                    let (sr, sa) = scratch.s[inc.sample[e] as usize];
+                    let om = inc.weight[e];
+                    num += om * sr;
+                    den += om * om * sa;
+                }
+                if den > 0.0 {
+                    (table[k] - num / den).max(0.0) - table[k]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        for (&k, &dx) in color.iter().zip(&steps) {
+            if dx == 0.0 {
+                continue;
+            }
+            table[k] += dx;
+            for e in inc.entries(k) {
+                let j = inc.sample[e] as usize;
+                let om = inc.weight[e];
+                let sj = &mut scratch.s[j];
+                sj.0 += sj.1 * om * dx;
+                scratch.delta[j] += om * dx;
+            }
+        }
+    }
+}
+
+/// Update D^m. A_jC = s_C^m F_C G^m(theta_i) G^m(theta_o) / (cos cos).
+pub(crate) fn update_d(set: &FitSet, st: &mut State, m: usize, scratch: &mut Scratch) {
+    let s = st.factors.s[m];
+    let coef = |c: &Cache, j: usize| {
+        let p = c.gi[m] * c.go[m] * set.inv_cc[j];
+        [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
+    };
+    fill_scratch(set, &st.cache, scratch, |c, j| coef(c, j), [true; 3]);
+    linear_pass(&set.d_inc, &mut st.factors.d[m], scratch);
+    let delta = &scratch.delta;
+    st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+        let dx = delta[j];
+        if dx != 0.0 {
+            let a = coef(c, j);
+            c.dv[m] += dx;
+            for ch in 0..3 {
+                c.r[ch] += a[ch] * dx;
+            }
+        }
+    });
+}
+
+/// Update F_C for each channel. A_j = sum_m s_C^m D^m G^m G^m / (cos cos).
+pub(crate) fn update_f(set: &FitSet, st: &mut State, scratch: &mut Scratch) {
+    let lobes = st.factors.lobes();
+    for ch in 0..3 {
+        let s: Vec<f64> = st.factors.s.iter().map(|s| s[ch]).collect();
+        let coef = |c: &Cache, j: usize| (0..lobes).map(|m| s[m] * c.lobe_product(m, set.inv_cc[j])).sum::<f64>();
+        let mut mask = [false; 3];
+        mask[ch] = true;
+        fill_scratch(set, &st.cache, scratch, |c, j| {
+            let mut a = [0.0; 3];
+            a[ch] = coef(c, j);
+            a
+        }, mask);
+        linear_pass(&set.f_inc, &mut st.factors.f[ch], scratch);
+        let delta = &scratch.delta;
+        st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+            let dx = delta[j];
+            if dx != 0.0 {
+                c.fv[ch] += dx;
+                c.r[ch] += coef(c, j) * dx;
+            }
+        });
+    }
+}
+
+/// S_r and S_a of every sample for coefficients `a` (channels in `mask`).
+pub(crate) fn fill_scratch(
+    set: &FitSet,
+    cache: &[Cache],
+    scratch: &mut Scratch,
+    a: impl Fn(&Cache, usize) -> [f64; 3] + Sync,
+    mask: [bool; 3],
+) {
+    scratch.s.par_iter_mut().enumerate().for_each(|(j, out)| {
+        let c = &cache[j];
+        let w = &set.w[j];
+        let coef = a(c, j);
+        let (mut sr, mut sa) = (0.0, 0.0);
+        for ch in 0..3 {
+            if mask[ch] {
+                sr += w[ch] * c.r[ch] * coef[ch];
+                sa += w[ch] * coef[ch] * coef[ch];
+            }
+        }
+        *out = (sr, sa);
+    });
+}
+
+/// Update (d_C, s_C^1..s_C^M) per channel: the exact non-negative
+/// least-squares solution of a tiny system, by enumerating active sets
+/// (clamping an unconstrained solution could raise the objective).
+pub(crate) fn update_diffuse_and_scales(set: &FitSet, st: &mut State) {
+    let lobes = st.factors.lobes();
+    let k = lobes + 1;
+    // Gram matrix and right-hand side per channel: basis b_0 = 1, b_m = F D G G/(cc).
+    const MAXK: usize = MAX_LOBES + 1;
+    const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
+    let cache = &st.cache;
+    let sums: [f64; SIZE] = chunked_sum(set.len(), |range| {
+        let mut acc = [0.0; SIZE];
+        for j in range {
+            let c = &cache[j];
+            for ch in 0..3 {
+                let mut b = [0.0; MAXK];
+                b[0] = 1.0;
+                for m in 0..lobes {
+                    b[m + 1] = c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+                }
+                let w = set.w[j][ch];
+                let y = set.y[j][ch];
+                let base = ch * (MAXK * MAXK + MAXK);
+                for a in 0..k {
+                    let wb = w * b[a];
+                    for bb in a..k {
+                        acc[base + a * MAXK + bb] += wb * b[bb];
+                    }
+                    acc[base + MAXK * MAXK + a] += wb * y;
+                }
+            }
+        }
+        acc
+    });
+    for ch in 0..3 {
+        let base = ch * (MAXK * MAXK + MAXK);
+        let gram = DMatrix::from_fn(k, k, |a, b| {
+            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+            sums[base + lo * MAXK + hi]
+        });
+        let rhs = DVector::from_fn(k, |a, _| sums[base + MAXK * MAXK + a]);
+        let current: Vec<f64> = std::iter::once(st.factors.diffuse[ch]).chain(st.factors.s.iter().map(|s| s[ch])).collect();
+        let x = nnls_enumerate(&gram, &rhs, &current);
+        st.factors.diffuse[ch] = x[0];
+        for m in 0..lobes {
+            st.factors.s[m][ch] = x[m + 1];
+        }
+    }
+    let f = &st.factors;
+    st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+        for ch in 0..3 {
+            let mut v = f.diffuse[ch];
+            for m in 0..lobes {
+                v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+            }
+            c.r[ch] = v - set.y[j][ch];
+        }
+    });
+}
+
+/// argmin over x >= 0 of x'Gx - 2 r'x, by trying every support set. The
+/// current point is a candidate too, so the result is never worse.
+fn nnls_enumerate(gram: &DMatrix<f64>, rhs: &DVector<f64>, current: &[f64]) -> Vec<f64> {
+    let k = rhs.len();
+    let value = |x: &[f64]| {
+        let xv = DVector::from_column_slice(x);
+        (xv.transpose() * gram * &xv)[(0, 0)] - 2.0 * rhs.dot(&xv)
+    };
+    let mut best = current.to_vec();
+    let mut best_val = value(&best);
+    for mask in 1u32..(1 << k) {
+        let idx: Vec<usize> = (0..k).filter(|&i| mask & (1 << i) != 0).collect();
+        let sub = DMatrix::from_fn(idx.len(), idx.len(), |a, b| gram[(idx[a], idx[b])]);
+        let subr = DVector::from_fn(idx.len(), |a, _| rhs[idx[a]]);
+        let Some(chol) = sub.cholesky() else { continue };
+        let sol = chol.solve(&subr);
+        if sol.iter().any(|v| !(*v >= 0.0) || !v.is_finite()) {
+            continue;
+        }
+        let mut x = vec![0.0; k];
+        for (a, &i) in idx.iter().enumerate() {
+            x[i] = sol[a];
+        }
+        let v = value(&x);
+        if v < best_val {
+            best_val = v;
+            best = x;
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_matches_brute_force() {
+        // G = B'B for a random-ish B; compare with a fine grid search in 2-D.
+        let b = DMatrix::from_row_slice(3, 2, &[1.0, 0.5, 0.2, 1.0, 0.7, 0.3]);
+        let y = DVector::from_column_slice(&[-1.0, 2.0, 0.5]);
+        let gram = b.transpose() * &b;
+        let rhs = b.transpose() * &y;
+        let x = nnls_enumerate(&gram, &rhs, &[0.0, 0.0]);
+        let f = |x0: f64, x1: f64| (&b * DVector::from_column_slice(&[x0, x1]) - &y).norm_squared();
+        let mut best = f64::INFINITY;
+        for i in 0..=400 {
+            for j in 0..=400 {
+                best = best.min(f(i as f64 * 0.01, j as f64 * 0.01));
+            }
+        }
+        assert!(f(x[0], x[1]) <= best + 1e-12);
+        assert!(x.iter().all(|&v| v >= 0.0));
+    }
+}
