@@ -14,7 +14,7 @@
 //! MERL's reader finds the cell of a query by truncation ([`MerlTable::lookup`]).
 
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::Path;
 
 use byteorder::{ByteOrder, LittleEndian};
@@ -22,6 +22,7 @@ use byteorder::{ByteOrder, LittleEndian};
 use crate::atomic::write_atomic;
 use crate::error::LoadError;
 use crate::geometry::{directions_from_half_diff, Angles};
+use crate::planar;
 use crate::samples::{MeasuredSample, MeasuredSamples};
 
 /// A MERL table holding the file's own values (not scaled), channel-major.
@@ -64,18 +65,7 @@ impl MerlTable {
     /// Reads a MERL file. The size is checked before anything is allocated;
     /// see [`MerlTable::from_bytes`] for the other checks.
     pub fn read(path: &Path) -> Result<Self, LoadError> {
-        let mut file = std::fs::File::open(path).map_err(|e| LoadError::io(path, e))?;
-        let actual = file.metadata().map_err(|e| LoadError::io(path, e))?.len();
-        if actual != Self::FILE_BYTES {
-            return Err(Self::wrong_size(path, actual));
-        }
-        // One more byte than expected, so that a file growing under us is
-        // noticed as too long rather than silently cut.
-        let mut bytes = Vec::with_capacity(Self::FILE_BYTES as usize + 1);
-        (&mut file)
-            .take(Self::FILE_BYTES + 1)
-            .read_to_end(&mut bytes)
-            .map_err(|e| LoadError::io(path, e))?;
+        let bytes = planar::read_exact_size(path, Self::FILE_BYTES)?;
         Self::from_bytes(&bytes, path)
     }
 
@@ -111,14 +101,7 @@ impl MerlTable {
     }
 
     fn check_finite(raw: &[f64], path: &Path) -> Result<(), LoadError> {
-        match raw.iter().position(|v| !v.is_finite()) {
-            None => Ok(()),
-            Some(i) => Err(LoadError::NonFinite {
-                path: path.to_path_buf(),
-                channel: i / Self::CELLS,
-                cell: i % Self::CELLS,
-            }),
-        }
+        planar::check_finite(raw, Self::CELLS, path)
     }
 
     /// The file's bytes: byte-identical to the file an unchanged table was read from.
@@ -140,13 +123,7 @@ impl MerlTable {
             let mut header = [0u8; HEADER_BYTES];
             LittleEndian::write_i32_into(&Self::DIMS, &mut header);
             w.write_all(&header)?;
-            let mut buf = vec![0u8; 8 * 8192];
-            for chunk in self.raw.chunks(8192) {
-                let b = &mut buf[..8 * chunk.len()];
-                LittleEndian::write_f64_into(chunk, b);
-                w.write_all(b)?;
-            }
-            Ok(())
+            planar::write_f64s(w, &self.raw)
         })
     }
 
