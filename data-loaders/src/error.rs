@@ -1,13 +1,157 @@
 //! Errors of the file formats: every one names the file and the problem.
-use std::path::PathBuf;
+//!
+//! Each variant carries the `path` it is about, and its `Display` starts with
+//! that path, so a message printed on its own is enough to act on.
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
+    /// The operating system refused a read, write, create or rename.
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// The file is not exactly as long as the format requires.
+    #[error(
+        "{path}: wrong file size, {} ({actual} bytes, expected {expected})",
+        size_problem(*.expected, *.actual)
+    )]
+    WrongSize {
+        path: PathBuf,
+        expected: u64,
+        actual: u64,
+    },
+    /// The header dimensions are not those of a MERL table.
+    #[error(
+        "{path}: not a MERL table, header dimensions are {} {} {} (expected 90 90 180)",
+        .dims[0], .dims[1], .dims[2]
+    )]
+    BadHeader { path: PathBuf, dims: [i32; 3] },
+    /// The first NaN or infinite value found (channel 0 = red, 1 = green, 2 = blue).
+    #[error(
+        "{path}: value is NaN or infinite ({} channel, cell {cell})",
+        channel_name(*.channel)
+    )]
+    NonFinite {
+        path: PathBuf,
+        channel: usize,
+        cell: usize,
+    },
+    /// The output file exists and overwriting was not asked for.
+    #[error("{path}: already exists (refusing to overwrite)")]
+    Exists { path: PathBuf },
+    /// Anything else wrong with the contents.
     #[error("{path}: {problem}")]
     Invalid { path: PathBuf, problem: String },
+}
+
+fn size_problem(expected: u64, actual: u64) -> &'static str {
+    match actual {
+        0 => "the file is empty",
+        a if a < expected => "the file is truncated",
+        _ => "the file is too long",
+    }
+}
+
+fn channel_name(channel: usize) -> String {
+    match channel {
+        0 => "red".to_string(),
+        1 => "green".to_string(),
+        2 => "blue".to_string(),
+        c => format!("#{c}"),
+    }
+}
+
+impl LoadError {
+    /// An [`LoadError::Io`] about `path`.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        LoadError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// An [`LoadError::Invalid`] about `path`.
+    pub fn invalid(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
+        LoadError::Invalid {
+            path: path.into(),
+            problem: problem.into(),
+        }
+    }
+
+    /// The file this error is about.
+    pub fn path(&self) -> &Path {
+        match self {
+            LoadError::Io { path, .. }
+            | LoadError::WrongSize { path, .. }
+            | LoadError::BadHeader { path, .. }
+            | LoadError::NonFinite { path, .. }
+            | LoadError::Exists { path }
+            | LoadError::Invalid { path, .. } => path,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_name_the_file_and_the_problem() {
+        let p = PathBuf::from("dir/x.binary");
+        let cases = [
+            (
+                LoadError::WrongSize {
+                    path: p.clone(),
+                    expected: 10,
+                    actual: 0,
+                },
+                "empty",
+            ),
+            (
+                LoadError::WrongSize {
+                    path: p.clone(),
+                    expected: 10,
+                    actual: 9,
+                },
+                "truncated",
+            ),
+            (
+                LoadError::WrongSize {
+                    path: p.clone(),
+                    expected: 10,
+                    actual: 11,
+                },
+                "too long",
+            ),
+            (
+                LoadError::BadHeader {
+                    path: p.clone(),
+                    dims: [1, 2, 3],
+                },
+                "1 2 3",
+            ),
+            (
+                LoadError::NonFinite {
+                    path: p.clone(),
+                    channel: 1,
+                    cell: 7,
+                },
+                "green channel, cell 7",
+            ),
+            (LoadError::Exists { path: p.clone() }, "already exists"),
+            (LoadError::invalid(&p, "odd"), "odd"),
+            (
+                LoadError::io(&p, std::io::Error::other("disk on fire")),
+                "disk on fire",
+            ),
+        ];
+        for (e, want) in cases {
+            let s = e.to_string();
+            assert!(s.starts_with("dir/x.binary: "), "{s}");
+            assert!(s.contains(want), "{s}");
+            assert_eq!(e.path(), p.as_path());
+        }
+    }
 }

@@ -10,8 +10,11 @@ pub mod atomic;
 pub mod error;
 pub mod geometry;
 pub mod merl;
+mod planar;
 pub mod samples;
+pub mod utia;
 
 pub use error::LoadError;
 pub use merl::MerlTable;
 pub use samples::{MeasuredSample, MeasuredSamples};
+pub use utia::UtiaTable;

@@ -1,2 +1,351 @@
-//! MERL .binary tables (see the loaders work).
-pub struct MerlTable;
+//! MERL `.binary` isotropic BRDF tables.
+//!
+//! Layout: three little-endian `i32` dimensions (90, 90, 180), then
+//! 3 × 1,458,000 little-endian `f64`, channel-planar (all red, then all green,
+//! then all blue). Within a channel, cell (iθh, iθd, iφd) is at
+//! `iφd + 180·(iθd + 90·iθh)`.
+//!
+//! Stored values are physical values (1/sr) divided by [`MerlTable::SCALE`].
+//! A negative value in any channel marks a missing sample (unmeasured or
+//! below the horizon); negatives are kept as they are, never clamped.
+//!
+//! Each cell stands for the lower-edge node of its bin,
+//! θh = (i/90)²·π/2, θd = j·π/180, φd = k·π/180 (see [`MerlTable::node_angles`]);
+//! MERL's reader finds the cell of a query by truncation ([`MerlTable::lookup`]).
+
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::io::Write;
+use std::path::Path;
+
+use byteorder::{ByteOrder, LittleEndian};
+
+use crate::atomic::write_atomic;
+use crate::error::LoadError;
+use crate::geometry::{directions_from_half_diff, Angles};
+use crate::planar;
+use crate::samples::{MeasuredSample, MeasuredSamples};
+
+/// A MERL table holding the file's own values (not scaled), channel-major.
+#[derive(Clone, PartialEq)]
+pub struct MerlTable {
+    raw: Vec<f64>,
+}
+
+/// A summary; the 4.4 million values are not printed.
+impl std::fmt::Debug for MerlTable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MerlTable")
+            .field("cells", &Self::CELLS)
+            .field("valid_cells", &self.valid_cells())
+            .finish_non_exhaustive()
+    }
+}
+
+const HEADER_BYTES: usize = 12;
+
+/// Lookup tolerance in bin units: a query this close below a bin's lower edge
+/// counts as inside that bin, so exact node angles, which can round to just
+/// below their edge, find their own cell.
+const EDGE_TOLERANCE: f64 = 1e-9;
+
+impl MerlTable {
+    pub const RES_THETA_H: usize = 90;
+    pub const RES_THETA_D: usize = 90;
+    pub const RES_PHI_D: usize = 180;
+    /// Cells per channel.
+    pub const CELLS: usize = 1_458_000;
+    /// Physical value (1/sr) = stored value × `SCALE[channel]`.
+    pub const SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
+    /// Exact size of a MERL file.
+    pub const FILE_BYTES: u64 = 12 + 3 * 1_458_000 * 8;
+    /// The stored value written for a missing cell by [`MerlTable::from_fn`].
+    pub const MISSING: f64 = -1.0;
+    const DIMS: [i32; 3] = [90, 90, 180];
+
+    /// Reads a MERL file. The size is checked before anything is allocated;
+    /// see [`MerlTable::from_bytes`] for the other checks.
+    pub fn read(path: &Path) -> Result<Self, LoadError> {
+        let bytes = planar::read_exact_size(path, Self::FILE_BYTES)?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Decodes the bytes of a MERL file; `path` is only used in messages.
+    ///
+    /// Errors: [`LoadError::WrongSize`] unless exactly [`MerlTable::FILE_BYTES`]
+    /// long, [`LoadError::BadHeader`] unless the header is 90 90 180,
+    /// [`LoadError::NonFinite`] for the first NaN or infinite value.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, LoadError> {
+        if bytes.len() as u64 != Self::FILE_BYTES {
+            return Err(Self::wrong_size(path, bytes.len() as u64));
+        }
+        let mut dims = [0i32; 3];
+        LittleEndian::read_i32_into(&bytes[..HEADER_BYTES], &mut dims);
+        if dims != Self::DIMS {
+            return Err(LoadError::BadHeader {
+                path: path.to_path_buf(),
+                dims,
+            });
+        }
+        let mut raw = vec![0.0; 3 * Self::CELLS];
+        LittleEndian::read_f64_into(&bytes[HEADER_BYTES..], &mut raw);
+        Self::check_finite(&raw, path)?;
+        Ok(MerlTable { raw })
+    }
+
+    fn wrong_size(path: &Path, actual: u64) -> LoadError {
+        LoadError::WrongSize {
+            path: path.to_path_buf(),
+            expected: Self::FILE_BYTES,
+            actual,
+        }
+    }
+
+    fn check_finite(raw: &[f64], path: &Path) -> Result<(), LoadError> {
+        planar::check_finite(raw, Self::CELLS, path)
+    }
+
+    /// The file's bytes: byte-identical to the file an unchanged table was read from.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut bytes = vec![0u8; Self::FILE_BYTES as usize];
+        LittleEndian::write_i32_into(&Self::DIMS, &mut bytes[..HEADER_BYTES]);
+        LittleEndian::write_f64_into(&self.raw, &mut bytes[HEADER_BYTES..]);
+        bytes
+    }
+
+    /// Writes the table atomically (see [`crate::atomic::write_atomic`]).
+    ///
+    /// Refuses with [`LoadError::NonFinite`] (and writes nothing) if the table
+    /// holds a NaN or infinite value, since the file could not be read back;
+    /// with [`LoadError::Exists`] if `path` exists and `overwrite` is false.
+    pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), LoadError> {
+        Self::check_finite(&self.raw, path)?;
+        write_atomic(path, overwrite, |w: &mut dyn Write| {
+            let mut header = [0u8; HEADER_BYTES];
+            LittleEndian::write_i32_into(&Self::DIMS, &mut header);
+            w.write_all(&header)?;
+            planar::write_f64s(w, &self.raw)
+        })
+    }
+
+    /// Tabulates `f(theta_h, theta_d, phi_d)` at every cell's lower-edge node
+    /// ([`MerlTable::node_angles`]). `Some(rgb)` holds physical values (1/sr)
+    /// and is stored divided by [`MerlTable::SCALE`]; `None` marks the cell
+    /// missing ([`MerlTable::MISSING`] in all channels).
+    ///
+    /// Values are stored as given: a negative channel makes the cell read as
+    /// missing, and a NaN or infinite value makes [`MerlTable::write`] fail.
+    /// Runs serially; `Sync` is required so a parallel version can be added
+    /// without changing callers.
+    pub fn from_fn(f: impl Fn(f64, f64, f64) -> Option<[f64; 3]> + Sync) -> Self {
+        let mut raw = vec![0.0; 3 * Self::CELLS];
+        for i_th in 0..Self::RES_THETA_H {
+            for i_td in 0..Self::RES_THETA_D {
+                for i_pd in 0..Self::RES_PHI_D {
+                    let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
+                    let idx = Self::index(i_th, i_td, i_pd);
+                    let v = match f(th, td, pd) {
+                        Some(rgb) => [
+                            rgb[0] / Self::SCALE[0],
+                            rgb[1] / Self::SCALE[1],
+                            rgb[2] / Self::SCALE[2],
+                        ],
+                        None => [Self::MISSING; 3],
+                    };
+                    for (c, x) in v.into_iter().enumerate() {
+                        raw[c * Self::CELLS + idx] = x;
+                    }
+                }
+            }
+        }
+        MerlTable { raw }
+    }
+
+    /// A table from stored (unscaled) values, channel-major as in the file.
+    ///
+    /// # Panics
+    /// If `raw.len() != 3 * MerlTable::CELLS`. Values are not checked.
+    pub fn from_raw(raw: Vec<f64>) -> Self {
+        assert_eq!(
+            raw.len(),
+            3 * Self::CELLS,
+            "a MERL table has 3 * {} values",
+            Self::CELLS
+        );
+        MerlTable { raw }
+    }
+
+    /// The stored values, channel-major: `raw[c * CELLS + index]`.
+    pub fn raw(&self) -> &[f64] {
+        &self.raw
+    }
+
+    /// Cell index within a channel: `i_pd + 180 * (i_td + 90 * i_th)`.
+    #[inline]
+    pub fn index(i_th: usize, i_td: usize, i_pd: usize) -> usize {
+        i_pd + Self::RES_PHI_D * (i_td + Self::RES_THETA_D * i_th)
+    }
+
+    /// The (theta_h, theta_d, phi_d) node a cell stands for, in radians:
+    /// ((i/90)²·π/2, j·π/180, k·π/180).
+    #[inline]
+    pub fn node_angles(i_th: usize, i_td: usize, i_pd: usize) -> (f64, f64, f64) {
+        let u = i_th as f64 / Self::RES_THETA_H as f64;
+        (
+            u * u * FRAC_PI_2,
+            i_td as f64 * (PI / 180.0),
+            i_pd as f64 * (PI / 180.0),
+        )
+    }
+
+    /// Physical RGB (1/sr) of a cell, or `None` if any channel is negative.
+    ///
+    /// # Panics
+    /// If `index >= MerlTable::CELLS`.
+    #[inline]
+    pub fn cell(&self, index: usize) -> Option<[f64; 3]> {
+        assert!(index < Self::CELLS, "MERL cell index {index} out of range");
+        let mut out = [0.0; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let v = self.raw[c * Self::CELLS + index];
+            if v < 0.0 {
+                return None;
+            }
+            *o = v * Self::SCALE[c];
+        }
+        Some(out)
+    }
+
+    /// MERL's truncating lookup: the cell whose bin contains the query, its
+    /// physical RGB, or `None` if that cell is missing or an angle is NaN.
+    ///
+    /// iθh = ⌊√(θh/(π/2))·90⌋ (0 for θh ≤ 0), iθd = ⌊θd/(π/2)·90⌋,
+    /// iφd = ⌊φd/π·180⌋ after adding π to a negative φd; each index is
+    /// clamped to its range. One deviation from the reference reader: a query
+    /// within 1e-9 bin widths below a bin edge counts as in that bin, so
+    /// `lookup` at [`MerlTable::node_angles`] returns that node's cell.
+    pub fn lookup(&self, theta_h: f64, theta_d: f64, phi_d: f64) -> Option<[f64; 3]> {
+        if theta_h.is_nan() || theta_d.is_nan() || phi_d.is_nan() {
+            return None;
+        }
+        let x_th = if theta_h <= 0.0 {
+            0.0
+        } else {
+            (theta_h / FRAC_PI_2).sqrt() * Self::RES_THETA_H as f64
+        };
+        let x_td = theta_d / FRAC_PI_2 * Self::RES_THETA_D as f64;
+        let pd = if phi_d < 0.0 { phi_d + PI } else { phi_d };
+        let x_pd = pd / PI * Self::RES_PHI_D as f64;
+        self.cell(Self::index(
+            bin(x_th, Self::RES_THETA_H),
+            bin(x_td, Self::RES_THETA_D),
+            bin(x_pd, Self::RES_PHI_D),
+        ))
+    }
+
+    /// Number of cells with no negative channel.
+    pub fn valid_cells(&self) -> usize {
+        let (r, rest) = self.raw.split_at(Self::CELLS);
+        let (g, b) = rest.split_at(Self::CELLS);
+        r.iter()
+            .zip(g)
+            .zip(b)
+            .filter(|((r, g), b)| **r >= 0.0 && **g >= 0.0 && **b >= 0.0)
+            .count()
+    }
+
+    /// The valid cells whose node is above the horizon (cos θi > 0 and
+    /// cos θo > 0, with φh = 0), as samples at the node angles with physical
+    /// RGB. Missing cells and below-horizon cells are counted in `missing`,
+    /// so `samples.len() + missing == CELLS`. Samples are in cell order.
+    pub fn samples(&self, source: &str) -> MeasuredSamples {
+        let mut samples = Vec::with_capacity(self.valid_cells());
+        let mut missing = 0;
+        for i_th in 0..Self::RES_THETA_H {
+            for i_td in 0..Self::RES_THETA_D {
+                for i_pd in 0..Self::RES_PHI_D {
+                    let Some(rgb) = self.cell(Self::index(i_th, i_td, i_pd)) else {
+                        missing += 1;
+                        continue;
+                    };
+                    let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
+                    let (wi, wo) = directions_from_half_diff(th, 0.0, td, pd);
+                    if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                        missing += 1;
+                        continue;
+                    }
+                    samples.push(MeasuredSample {
+                        angles: Angles::from_half_diff(th, 0.0, td, pd),
+                        rgb,
+                    });
+                }
+            }
+        }
+        MeasuredSamples {
+            source: source.to_string(),
+            isotropic: true,
+            samples,
+            missing,
+        }
+    }
+}
+
+/// ⌊x⌋ (with [`EDGE_TOLERANCE`]) clamped to `0..n`.
+#[inline]
+fn bin(x: f64, n: usize) -> usize {
+    let f = (x + EDGE_TOLERANCE).floor();
+    if f <= 0.0 {
+        0
+    } else if f >= (n - 1) as f64 {
+        n - 1
+    } else {
+        f as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constants_agree() {
+        assert_eq!(
+            MerlTable::CELLS,
+            MerlTable::RES_THETA_H * MerlTable::RES_THETA_D * MerlTable::RES_PHI_D
+        );
+        assert_eq!(
+            MerlTable::FILE_BYTES,
+            (HEADER_BYTES + 3 * MerlTable::CELLS * 8) as u64
+        );
+        assert_eq!(MerlTable::index(89, 89, 179), MerlTable::CELLS - 1);
+        assert_eq!(MerlTable::index(0, 1, 0), 180);
+        assert_eq!(MerlTable::index(1, 0, 0), 180 * 90);
+    }
+
+    #[test]
+    fn every_node_bins_to_itself() {
+        for i in 0..90 {
+            let (th, _, _) = MerlTable::node_angles(i, 0, 0);
+            let x = (th / FRAC_PI_2).sqrt() * 90.0;
+            assert_eq!(bin(x, 90), i);
+        }
+        for j in 0..90 {
+            let (_, td, _) = MerlTable::node_angles(0, j, 0);
+            assert_eq!(bin(td / FRAC_PI_2 * 90.0, 90), j);
+        }
+        for k in 0..180 {
+            let (_, _, pd) = MerlTable::node_angles(0, 0, k);
+            assert_eq!(bin(pd / PI * 180.0, 180), k);
+        }
+    }
+
+    #[test]
+    fn bins_truncate_and_clamp() {
+        assert_eq!(bin(-3.0, 90), 0);
+        assert_eq!(bin(0.999, 90), 0);
+        assert_eq!(bin(1.0, 90), 1);
+        assert_eq!(bin(89.5, 90), 89);
+        assert_eq!(bin(1e300, 90), 89);
+        assert_eq!(bin(f64::INFINITY, 90), 89);
+        assert_eq!(bin(f64::NEG_INFINITY, 90), 0);
+    }
+}

@@ -1,0 +1,62 @@
+//! Shared pieces of the channel-planar float64 formats.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use byteorder::{ByteOrder, LittleEndian};
+
+use crate::error::LoadError;
+
+/// [`LoadError::NonFinite`] for the first NaN or infinite value of `raw`,
+/// laid out as channel planes of `cells` values each.
+pub(crate) fn check_finite(raw: &[f64], cells: usize, path: &Path) -> Result<(), LoadError> {
+    match raw.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(LoadError::NonFinite {
+            path: path.to_path_buf(),
+            channel: i / cells,
+            cell: i % cells,
+        }),
+    }
+}
+
+/// Writes `values` as little-endian f64, in chunks (no full-size copy).
+pub(crate) fn write_f64s(w: &mut dyn Write, values: &[f64]) -> io::Result<()> {
+    const CHUNK: usize = 8192;
+    let mut buf = vec![0u8; 8 * CHUNK.min(values.len())];
+    for chunk in values.chunks(CHUNK) {
+        let b = &mut buf[..8 * chunk.len()];
+        LittleEndian::write_f64_into(chunk, b);
+        w.write_all(b)?;
+    }
+    Ok(())
+}
+
+/// Reads a file of exactly `expected` bytes: the size is checked before the
+/// contents are read, and a file that grew meanwhile is reported too long.
+pub(crate) fn read_exact_size(path: &Path, expected: u64) -> Result<Vec<u8>, LoadError> {
+    use std::io::Read;
+    let io = |e| LoadError::io(path, e);
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let actual = file.metadata().map_err(io)?.len();
+    if actual != expected {
+        return Err(LoadError::WrongSize {
+            path: path.to_path_buf(),
+            expected,
+            actual,
+        });
+    }
+    let mut bytes = Vec::with_capacity(expected as usize + 1);
+    (&mut file)
+        .take(expected + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 != expected {
+        return Err(LoadError::WrongSize {
+            path: path.to_path_buf(),
+            expected,
+            actual: bytes.len() as u64,
+        });
+    }
+    Ok(bytes)
+}
