@@ -18,22 +18,49 @@ pub struct Stencil {
 
 impl Stencil {
     pub fn single(i: usize) -> Self {
-        Stencil { idx: [i as u32, 0, 0, 0], w: [1.0, 0.0, 0.0, 0.0] }
+        Stencil {
+            idx: [i as u32, 0, 0, 0],
+            w: [1.0, 0.0, 0.0, 0.0],
+        }
     }
 
     #[inline]
     pub fn apply(&self, values: &[f64]) -> f64 {
-        self.idx.iter().zip(&self.w).map(|(&i, &w)| if w != 0.0 { w * values[i as usize] } else { 0.0 }).sum()
+        self.idx
+            .iter()
+            .zip(&self.w)
+            .map(|(&i, &w)| {
+                if w != 0.0 {
+                    w * values[i as usize]
+                } else {
+                    0.0
+                }
+            })
+            .sum()
     }
 
     #[inline]
     pub fn apply_f32(&self, values: &[f32]) -> f64 {
-        self.idx.iter().zip(&self.w).map(|(&i, &w)| if w != 0.0 { w * values[i as usize] as f64 } else { 0.0 }).sum()
+        self.idx
+            .iter()
+            .zip(&self.w)
+            .map(|(&i, &w)| {
+                if w != 0.0 {
+                    w * values[i as usize] as f64
+                } else {
+                    0.0
+                }
+            })
+            .sum()
     }
 
     /// The non-zero entries.
     pub fn entries(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
-        self.idx.iter().zip(&self.w).filter(|(_, &w)| w != 0.0).map(|(&i, &w)| (i as usize, w))
+        self.idx
+            .iter()
+            .zip(&self.w)
+            .filter(|(_, &w)| w != 0.0)
+            .map(|(&i, &w)| (i as usize, w))
     }
 }
 
@@ -110,8 +137,18 @@ impl Axis {
     /// quadrature on each unit of node coordinate (interpolants are
     /// polynomial there, so this is exact up to g's smoothness).
     pub fn quadrature_weights(&self, g: impl Fn(f64) -> f64) -> Vec<f64> {
-        const GL_X: [f64; 4] = [-0.861_136_311_594_052_6, -0.339_981_043_584_856_3, 0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
-        const GL_W: [f64; 4] = [0.347_854_845_137_453_9, 0.652_145_154_862_546_1, 0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
+        const GL_X: [f64; 4] = [
+            -0.861_136_311_594_052_6,
+            -0.339_981_043_584_856_3,
+            0.339_981_043_584_856_3,
+            0.861_136_311_594_052_6,
+        ];
+        const GL_W: [f64; 4] = [
+            0.347_854_845_137_453_9,
+            0.652_145_154_862_546_1,
+            0.652_145_154_862_546_1,
+            0.347_854_845_137_453_9,
+        ];
         let mut q = vec![0.0; self.len()];
         let end = self.coord_end();
         // Sub-steps per node interval: the sqrt map is steep near 0.
@@ -155,7 +192,10 @@ fn linear_stencil(p: f64, n: usize) -> Stencil {
     if t > 1.0 - SNAP {
         return Stencil::single(i + 1);
     }
-    Stencil { idx: [i as u32, i as u32 + 1, 0, 0], w: [1.0 - t, t, 0.0, 0.0] }
+    Stencil {
+        idx: [i as u32, i as u32 + 1, 0, 0],
+        w: [1.0 - t, t, 0.0, 0.0],
+    }
 }
 
 /// pbrt-v3's CatmullRomWeights on uniform nodes 0..n-1 (coordinate p):
@@ -229,7 +269,11 @@ mod tests {
     #[test]
     fn quadrature_weights_integrate_interpolated_tables() {
         // A constant table integrates cos*sin over [0, pi/2] to 1/2 on every axis.
-        for axis in [Axis::SqrtAngle { n: 90 }, Axis::Uniform { n: 45 }, Axis::CatmullRom { n: 30 }] {
+        for axis in [
+            Axis::SqrtAngle { n: 90 },
+            Axis::Uniform { n: 45 },
+            Axis::CatmullRom { n: 30 },
+        ] {
             let q = axis.quadrature_weights(|t| t.cos() * t.sin());
             let total: f64 = q.iter().sum();
             assert!((total - 0.5).abs() < 1e-9, "{axis:?}: {total}");

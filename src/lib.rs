@@ -6,10 +6,12 @@
 //! [`energy`] holds the energy-compensation toolkit.
 
 pub mod cli;
+pub mod energy;
 pub mod interp;
+pub mod metrics;
 pub mod model;
 pub mod samples;
 pub mod solver;
-pub mod energy;
+pub mod synth;
 
 pub use npf_data_loaders as loaders;

@@ -28,7 +28,11 @@ impl Layout {
     /// MERL-aligned layout with `n` values per factor: D on MERL's theta_h
     /// nodes, F on its theta_d nodes, G as Catmull-Rom control points.
     pub fn isotropic(n: usize) -> Self {
-        Layout { d: Axis::SqrtAngle { n }, f: Axis::Uniform { n }, g: Axis::CatmullRom { n } }
+        Layout {
+            d: Axis::SqrtAngle { n },
+            f: Axis::Uniform { n },
+            g: Axis::CatmullRom { n },
+        }
     }
 
     pub fn d_stencil(&self, a: &Angles) -> Stencil {
@@ -108,7 +112,10 @@ impl Model {
     pub fn from_params(layout: Layout, lobes: usize, p: &[f32]) -> Result<Self, String> {
         let expected = layout.param_count(lobes);
         if p.len() != expected {
-            return Err(format!("{} parameters for {lobes} lobes, expected {expected}", p.len()));
+            return Err(format!(
+                "{} parameters for {lobes} lobes, expected {expected}",
+                p.len()
+            ));
         }
         let (nd, ng, nf) = (layout.d.len(), layout.g.len(), layout.f.len());
         let mut it = p.iter().copied();
@@ -119,8 +126,18 @@ impl Model {
         let d: Vec<Vec<f32>> = (0..lobes).map(|_| take(nd)).collect();
         let g: Vec<Vec<f32>> = (0..lobes).map(|_| take(ng)).collect();
         let fresnel = [take(nf), take(nf), take(nf)];
-        let lobes = s.into_iter().zip(d).zip(g).map(|((s, d), g)| Lobe { s, d, g }).collect();
-        let m = Model { layout, diffuse, fresnel, lobes };
+        let lobes = s
+            .into_iter()
+            .zip(d)
+            .zip(g)
+            .map(|((s, d), g)| Lobe { s, d, g })
+            .collect();
+        let m = Model {
+            layout,
+            diffuse,
+            fresnel,
+            lobes,
+        };
         m.validate()?;
         Ok(m)
     }
@@ -140,20 +157,35 @@ impl Model {
         }
         for (c, f) in self.fresnel.iter().enumerate() {
             if f.len() != l.f.len() {
-                return Err(format!("F channel {c} has {} values, layout says {}", f.len(), l.f.len()));
+                return Err(format!(
+                    "F channel {c} has {} values, layout says {}",
+                    f.len(),
+                    l.f.len()
+                ));
             }
         }
         for (m, lobe) in self.lobes.iter().enumerate() {
             if lobe.d.len() != l.d.len() || lobe.g.len() != l.g.len() {
-                return Err(format!("lobe {m}: D/G sizes {}/{} do not match the layout", lobe.d.len(), lobe.g.len()));
+                return Err(format!(
+                    "lobe {m}: D/G sizes {}/{} do not match the layout",
+                    lobe.d.len(),
+                    lobe.g.len()
+                ));
             }
         }
         let params = self.params();
         if let Some(i) = params.iter().position(|v| !v.is_finite()) {
             return Err(format!("parameter {i} is not finite"));
         }
-        if self.diffuse.iter().chain(self.fresnel.iter().flatten()).any(|&v| v < 0.0)
-            || self.lobes.iter().any(|l| l.s.iter().chain(&l.d).any(|&v| v < 0.0))
+        if self
+            .diffuse
+            .iter()
+            .chain(self.fresnel.iter().flatten())
+            .any(|&v| v < 0.0)
+            || self
+                .lobes
+                .iter()
+                .any(|l| l.s.iter().chain(&l.d).any(|&v| v < 0.0))
         {
             return Err("negative d, s, D or F value".into());
         }
@@ -170,10 +202,15 @@ impl Model {
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
         let (gis, gos) = (l.g_stencil(a.theta_i), l.g_stencil(a.theta_o));
-        let f = [fs.apply_f32(&self.fresnel[0]), fs.apply_f32(&self.fresnel[1]), fs.apply_f32(&self.fresnel[2])];
+        let f = [
+            fs.apply_f32(&self.fresnel[0]),
+            fs.apply_f32(&self.fresnel[1]),
+            fs.apply_f32(&self.fresnel[2]),
+        ];
         let mut v = self.diffuse.map(f64::from);
         for lobe in &self.lobes {
-            let spec = ds.apply_f32(&lobe.d) * gis.apply_f32(&lobe.g) * gos.apply_f32(&lobe.g) / (ci * co);
+            let spec =
+                ds.apply_f32(&lobe.d) * gis.apply_f32(&lobe.g) * gos.apply_f32(&lobe.g) / (ci * co);
             for c in 0..3 {
                 v[c] += lobe.s[c] as f64 * f[c] * spec;
             }
@@ -201,7 +238,13 @@ mod tests {
             layout,
             diffuse: [0.1, 0.2, 0.3],
             fresnel: [vec![1.0; n], vec![0.5; n], vec![0.25; n]],
-            lobes: (0..lobes).map(|m| Lobe { s: [1.0, 2.0, 3.0], d: vec![m as f32 + 1.0; n], g: vec![0.9; n] }).collect(),
+            lobes: (0..lobes)
+                .map(|m| Lobe {
+                    s: [1.0, 2.0, 3.0],
+                    d: vec![m as f32 + 1.0; n],
+                    g: vec![0.9; n],
+                })
+                .collect(),
         }
     }
 

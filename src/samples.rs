@@ -49,11 +49,22 @@ pub struct SampleOptions {
     /// (degrees) are left out of the fit. Measurements near the horizon are
     /// the noisiest and matter least in renderings (they are foreshortened).
     pub max_theta_deg: f64,
+    /// D cells above this half angle (degrees) are not free: they hold the
+    /// value of the last free cell. Only near-grazing samples (theta_i and
+    /// theta_o both close to the cut-off) reach them, and there D trades
+    /// scale with an equally unconstrained grazing G; left free, a lobe can
+    /// put all its mass into such a cell.
+    pub max_theta_h_deg: f64,
 }
 
 impl Default for SampleOptions {
     fn default() -> Self {
-        SampleOptions { weighting: Weighting::Compressive, epsilon: 1e-3, max_theta_deg: 85.0 }
+        SampleOptions {
+            weighting: Weighting::Compressive,
+            epsilon: 1e-3,
+            max_theta_deg: 85.0,
+            max_theta_h_deg: 75.0,
+        }
     }
 }
 
@@ -118,7 +129,11 @@ impl Incidence {
         let mut colors: Vec<Vec<usize>> = Vec::new();
         for k in 0..cells {
             let c = (0..)
-                .find(|&c| colors.get(c).map_or(true, |members: &Vec<usize>| members.iter().all(|&k2| !conflict[k * cells + k2])))
+                .find(|&c| {
+                    colors.get(c).map_or(true, |members: &Vec<usize>| {
+                        members.iter().all(|&k2| !conflict[k * cells + k2])
+                    })
+                })
                 .unwrap();
             if c == colors.len() {
                 colors.push(Vec::new());
@@ -126,7 +141,13 @@ impl Incidence {
             colors[c].push(k);
             color_of[k] = c;
         }
-        Incidence { start, sample, weight, colors, has_data }
+        Incidence {
+            start,
+            sample,
+            weight,
+            colors,
+            has_data,
+        }
     }
 }
 
@@ -168,7 +189,10 @@ impl GIncidence {
                 per_node[k].push((j as u32, u, v));
             }
         }
-        let mut g = GIncidence { start: vec![0], ..Default::default() };
+        let mut g = GIncidence {
+            start: vec![0],
+            ..Default::default()
+        };
         for list in per_node {
             let mut data = false;
             for (j, u, v) in list {
@@ -221,11 +245,62 @@ pub struct FitSet {
 #[derive(Debug, thiserror::Error)]
 pub enum SampleError {
     #[error("{source_name}: sample {index} has a non-finite or negative value {value}")]
-    BadValue { source_name: String, index: usize, value: f64 },
+    BadValue {
+        source_name: String,
+        index: usize,
+        value: f64,
+    },
     #[error("{source_name}: no valid samples left to fit ({input} valid in the input, {cut} beyond the {max_theta_deg} degree cut-off)")]
-    Empty { source_name: String, input: usize, cut: usize, max_theta_deg: f64 },
+    Empty {
+        source_name: String,
+        input: usize,
+        cut: usize,
+        max_theta_deg: f64,
+    },
     #[error("bad sample options: {0}")]
     Options(String),
+}
+
+/// The last G control point at or below the cut-off. Points past it would
+/// only be touched by the Catmull-Rom tails of a few samples near the cut
+/// and take wild values, so they are not free: they ramp linearly from the
+/// last free point to 0 at 90 degrees (see `solver::gauge`).
+pub fn last_free_g_node(layout: &Layout, cut: f64) -> usize {
+    last_free_node(&layout.g, cut).min(layout.g.len() - 2)
+}
+
+/// The last node of an axis at or below an angle.
+pub fn last_free_node(axis: &crate::interp::Axis, limit: f64) -> usize {
+    (0..axis.len())
+        .rev()
+        .find(|&k| axis.node(k) <= limit + 1e-12)
+        .unwrap_or(0)
+}
+
+/// Re-express a stencil on tied tail entries through the last free entry L:
+/// value_k = value_L * tie(k) for k > L.
+fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stencil {
+    let mut out = Stencil::default();
+    let mut slots = 0;
+    for (k, w) in st.entries() {
+        let (k, w) = if k > last_free {
+            (last_free, w * tie(k))
+        } else {
+            (k, w)
+        };
+        if w == 0.0 {
+            continue;
+        }
+        match (0..slots).find(|&i| out.idx[i] as usize == k) {
+            Some(i) => out.w[i] += w,
+            None => {
+                out.idx[slots] = k as u32;
+                out.w[slots] = w;
+                slots += 1;
+            }
+        }
+    }
+    out
 }
 
 struct Raw {
@@ -239,20 +314,43 @@ struct Raw {
 }
 
 impl FitSet {
-    pub fn build(samples: &MeasuredSamples, layout: Layout, options: SampleOptions) -> Result<Self, SampleError> {
+    pub fn build(
+        samples: &MeasuredSamples,
+        layout: Layout,
+        options: SampleOptions,
+    ) -> Result<Self, SampleError> {
         if !(options.epsilon > 0.0 && options.epsilon.is_finite()) {
-            return Err(SampleError::Options(format!("epsilon must be positive, got {}", options.epsilon)));
+            return Err(SampleError::Options(format!(
+                "epsilon must be positive, got {}",
+                options.epsilon
+            )));
+        }
+        if !(options.max_theta_h_deg > 0.0 && options.max_theta_h_deg <= 90.0) {
+            return Err(SampleError::Options(format!(
+                "the half-angle limit must be in (0, 90] degrees, got {}",
+                options.max_theta_h_deg
+            )));
         }
         if !(options.max_theta_deg > 0.0 && options.max_theta_deg <= 90.0) {
-            return Err(SampleError::Options(format!("the cut-off must be in (0, 90] degrees, got {}", options.max_theta_deg)));
+            return Err(SampleError::Options(format!(
+                "the cut-off must be in (0, 90] degrees, got {}",
+                options.max_theta_deg
+            )));
         }
         let cut = options.max_theta_deg.to_radians();
-        let mut stats = SampleStats { input: samples.samples.len(), ..Default::default() };
+        let mut stats = SampleStats {
+            input: samples.samples.len(),
+            ..Default::default()
+        };
         let q = |x: f64| (x * 1e7).round() as i64;
         let mut raws: Vec<Raw> = Vec::with_capacity(samples.samples.len());
         for (index, s) in samples.samples.iter().enumerate() {
             if let Some(&value) = s.rgb.iter().find(|v| !v.is_finite() || **v < 0.0) {
-                return Err(SampleError::BadValue { source_name: samples.source.clone(), index, value });
+                return Err(SampleError::BadValue {
+                    source_name: samples.source.clone(),
+                    index,
+                    value,
+                });
             }
             let a = &s.angles;
             let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
@@ -261,7 +359,11 @@ impl FitSet {
                 continue;
             }
             let w = s.rgb.map(|v| options.weight(v, ci));
-            let (lo, hi) = if a.theta_i <= a.theta_o { (a.theta_i, a.theta_o) } else { (a.theta_o, a.theta_i) };
+            let (lo, hi) = if a.theta_i <= a.theta_o {
+                (a.theta_i, a.theta_o)
+            } else {
+                (a.theta_o, a.theta_i)
+            };
             raws.push(Raw {
                 key: (q(a.theta_h), q(a.theta_d), q(lo), q(hi)),
                 y: s.rgb,
@@ -271,6 +373,12 @@ impl FitSet {
                 theta_h: a.theta_h,
                 theta_d: a.theta_d,
             });
+        }
+        if !samples.isotropic {
+            return Err(SampleError::Options(format!(
+                "{}: anisotropic samples need an anisotropic layout (not supported yet)",
+                samples.source
+            )));
         }
         if raws.is_empty() {
             return Err(SampleError::Empty {
@@ -310,7 +418,14 @@ impl FitSet {
         }
         // Order by theta_i then theta_o: the G control-point lists then read
         // memory mostly forward.
-        merged.sort_by(|a, b| a.key.2.cmp(&b.key.2).then(a.key.3.cmp(&b.key.3)).then(a.key.0.cmp(&b.key.0)).then(a.key.1.cmp(&b.key.1)));
+        merged.sort_by(|a, b| {
+            a.key
+                .2
+                .cmp(&b.key.2)
+                .then(a.key.3.cmp(&b.key.3))
+                .then(a.key.0.cmp(&b.key.0))
+                .then(a.key.1.cmp(&b.key.1))
+        });
         stats.fitted = merged.len();
         let n = merged.len();
         let mut set = FitSet {
@@ -329,14 +444,21 @@ impl FitSet {
             objective_offset: offset,
             stats,
         };
+        let g_free = last_free_g_node(&layout, cut);
+        let d_free = last_free_node(&layout.d, options.max_theta_h_deg.to_radians());
+        let n_g = layout.g.len();
+        let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
         for r in &merged {
             set.y.push(r.y);
             set.w.push(r.w);
             set.inv_cc.push(1.0 / (r.theta_i.cos() * r.theta_o.cos()));
-            set.d_st.push(layout.d.stencil(r.theta_h));
+            set.d_st
+                .push(fold_tail(layout.d.stencil(r.theta_h), d_free, |_| 1.0));
             set.f_st.push(layout.f.stencil(r.theta_d));
-            set.gi_st.push(layout.g.stencil(r.theta_i));
-            set.go_st.push(layout.g.stencil(r.theta_o));
+            set.gi_st
+                .push(fold_tail(layout.g.stencil(r.theta_i), g_free, g_ramp));
+            set.go_st
+                .push(fold_tail(layout.g.stencil(r.theta_o), g_free, g_ramp));
         }
         let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
         set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);

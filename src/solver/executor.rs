@@ -10,7 +10,7 @@ use crate::model::Model;
 use crate::samples::FitSet;
 use std::time::Instant;
 
-/// A point inside a sweep at which the objective is recorded.
+/// A step of a sweep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
     D(usize),
@@ -20,6 +20,16 @@ pub enum Stage {
     DiffuseAndScales,
     /// Canonical rescaling and a fresh recomputation of all caches.
     Gauge,
+    /// The extrapolation trial (accepted or not).
+    Extrapolate,
+}
+
+/// One stage's cost, and the objective after it when stages are traced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StageRecord {
+    pub stage: Stage,
+    pub seconds: f64,
+    pub objective: Option<f64>,
 }
 
 /// What one sweep did; passed to every observer.
@@ -32,11 +42,12 @@ pub struct SweepReport {
     pub rel_decrease: f64,
     /// Seconds since the fit started.
     pub elapsed: f64,
-    /// The objective after each stage, in order.
-    pub stages: Vec<(Stage, f64)>,
+    pub stages: Vec<StageRecord>,
     pub g_passes: Vec<GPassStats>,
     /// Smoothing passes reverted because they raised the objective.
     pub smoothing_reverted: usize,
+    /// Whether the extrapolated point was kept.
+    pub extrapolated: bool,
 }
 
 pub trait Observer {
@@ -67,9 +78,33 @@ pub struct Executor<'a> {
     observers: Vec<&'a mut dyn Observer>,
 }
 
+struct Recorder {
+    trace: bool,
+    t: Instant,
+    stages: Vec<StageRecord>,
+}
+
+impl Recorder {
+    fn mark(&mut self, stage: Stage, set: &FitSet, st: &State) {
+        let objective = self.trace.then(|| st.objective(set));
+        let now = Instant::now();
+        self.stages.push(StageRecord {
+            stage,
+            seconds: (now - self.t).as_secs_f64(),
+            objective,
+        });
+        self.t = now;
+    }
+}
+
 impl<'a> Executor<'a> {
     pub fn new(set: &'a FitSet, options: FitOptions) -> Self {
-        Executor { set, options, start: None, observers: Vec::new() }
+        Executor {
+            set,
+            options,
+            start: None,
+            observers: Vec::new(),
+        }
     }
 
     /// Start from these factors instead of the default initialisation.
@@ -89,60 +124,94 @@ impl<'a> Executor<'a> {
         let opts = self.options;
         let t0 = Instant::now();
         let measure = d_measure(set);
-        let factors = self.start.take().unwrap_or_else(|| initial_factors(set.layout, opts.lobes));
+        let factors = self
+            .start
+            .take()
+            .unwrap_or_else(|| initial_factors(set.layout, opts.lobes));
         if factors.layout != set.layout {
             return Err("the starting model's layout differs from the sample set's".into());
         }
         let mut st = State::new(set, factors);
         let mut scratch = Scratch::new(set.len());
+        let mut f_scratch = [
+            Scratch::new(set.len()),
+            Scratch::new(set.len()),
+            Scratch::new(set.len()),
+        ];
         update_diffuse_and_scales(set, &mut st);
         gauge(set, &mut st, &measure);
         let initial = st.objective(set);
         let mut prev = initial;
+        let mut prev_factors: Option<Factors> = None;
+        let mut beta = 1.0;
         let mut history = Vec::new();
         let mut converged = false;
         for sweep in 1..=opts.max_sweeps {
-            let mut stages = Vec::new();
+            let mut rec = Recorder {
+                trace: opts.trace_stages,
+                t: Instant::now(),
+                stages: Vec::new(),
+            };
             let mut g_passes = Vec::new();
             let mut reverted = 0;
             let lobes = st.factors.lobes();
             for m in 0..lobes {
                 update_d(set, &mut st, m, &mut scratch);
-                stages.push((Stage::D(m), st.objective(set)));
+                rec.mark(Stage::D(m), set, &st);
             }
-            update_f(set, &mut st, &mut scratch);
-            stages.push((Stage::F, st.objective(set)));
+            update_f(set, &mut st, &mut f_scratch);
+            rec.mark(Stage::F, set, &st);
             for m in 0..lobes {
                 g_passes.push(update_g(set, &mut st, m, opts.g_method, &mut scratch));
-                let before = st.objective(set);
-                stages.push((Stage::G(m), before));
+                rec.mark(Stage::G(m), set, &st);
                 if let Some(sigma) = opts.smooth_g {
+                    let before = st.objective(set);
                     let saved = st.factors.g[m].clone();
                     gaussian_smooth(&mut st.factors.g[m], sigma);
                     st.refresh(set);
-                    let after = st.objective(set);
-                    if after > before {
+                    if st.objective(set) > before {
                         st.factors.g[m] = saved;
                         st.refresh(set);
                         reverted += 1;
                     }
-                    stages.push((Stage::SmoothG(m), st.objective(set)));
+                    rec.mark(Stage::SmoothG(m), set, &st);
                 }
             }
             update_diffuse_and_scales(set, &mut st);
-            stages.push((Stage::DiffuseAndScales, st.objective(set)));
+            rec.mark(Stage::DiffuseAndScales, set, &st);
             gauge(set, &mut st, &measure);
-            let e = st.objective(set);
-            stages.push((Stage::Gauge, e));
+            let mut e = st.objective(set);
+            rec.mark(Stage::Gauge, set, &st);
+            let mut extrapolated = false;
+            if opts.accelerate {
+                if let Some(old) = &prev_factors {
+                    let current = st.factors.clone();
+                    st.factors = extrapolate(&current, old, beta);
+                    gauge(set, &mut st, &measure);
+                    let trial = st.objective(set);
+                    if trial < e {
+                        e = trial;
+                        extrapolated = true;
+                        beta = (beta * 1.5).min(8.0);
+                    } else {
+                        st.factors = current;
+                        st.refresh(set);
+                        beta = (beta * 0.5).max(0.5);
+                    }
+                    rec.mark(Stage::Extrapolate, set, &st);
+                }
+                prev_factors = Some(st.factors.clone());
+            }
             let rel = if prev > 0.0 { (prev - e) / prev } else { 0.0 };
             let report = SweepReport {
                 sweep,
                 objective: e,
                 rel_decrease: rel,
                 elapsed: t0.elapsed().as_secs_f64(),
-                stages,
+                stages: rec.stages,
                 g_passes,
                 smoothing_reverted: reverted,
+                extrapolated,
             };
             for o in self.observers.iter_mut() {
                 o.observe(&report);
@@ -170,6 +239,28 @@ fn gauge(set: &FitSet, st: &mut State, measure: &[f64]) {
     fill_unconstrained(&mut st.factors, set);
     normalise(&mut st.factors, set, measure);
     st.refresh(set);
+}
+
+/// x + beta (x - old), clamped at 0, for every table (both in canonical form).
+fn extrapolate(x: &Factors, old: &Factors, beta: f64) -> Factors {
+    let mv = |a: f64, b: f64| (a + beta * (a - b)).max(0.0);
+    let tab = |a: &Vec<f64>, b: &Vec<f64>| {
+        a.iter()
+            .zip(b)
+            .map(|(&a, &b)| mv(a, b))
+            .collect::<Vec<f64>>()
+    };
+    let lobes = x.lobes();
+    Factors {
+        layout: x.layout,
+        diffuse: std::array::from_fn(|c| mv(x.diffuse[c], old.diffuse[c])),
+        s: (0..lobes)
+            .map(|m| std::array::from_fn(|c| mv(x.s[m][c], old.s[m][c])))
+            .collect(),
+        d: (0..lobes).map(|m| tab(&x.d[m], &old.d[m])).collect(),
+        g: (0..lobes).map(|m| tab(&x.g[m], &old.g[m])).collect(),
+        f: std::array::from_fn(|c| tab(&x.f[c], &old.f[c])),
+    }
 }
 
 /// Gaussian smoothing with a kernel truncated at 3 sigma and renormalised at

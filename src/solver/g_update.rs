@@ -84,8 +84,17 @@ pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
     }
 }
 
-pub(crate) fn update_g(set: &FitSet, st: &mut State, m: usize, method: GMethod, scratch: &mut Scratch) -> GPassStats {
-    let mut stats = GPassStats { worst_accepted: f64::NEG_INFINITY, ..Default::default() };
+pub(crate) fn update_g(
+    set: &FitSet,
+    st: &mut State,
+    m: usize,
+    method: GMethod,
+    scratch: &mut Scratch,
+) -> GPassStats {
+    let mut stats = GPassStats {
+        worst_accepted: f64::NEG_INFINITY,
+        ..Default::default()
+    };
     if method == GMethod::Fixed {
         return stats;
     }
@@ -96,7 +105,11 @@ pub(crate) fn update_g(set: &FitSet, st: &mut State, m: usize, method: GMethod, 
     };
     fill_scratch(set, &st.cache, scratch, coef, [true; 3]);
     // Keep the old products to move the residuals once at the end.
-    scratch.delta.par_iter_mut().zip(&st.cache).for_each(|(d, c)| *d = c.gi[m] * c.go[m]);
+    scratch
+        .delta
+        .par_iter_mut()
+        .zip(&st.cache)
+        .for_each(|(d, c)| *d = c.gi[m] * c.go[m]);
     let inc = &set.g_inc;
     let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
     for k in 0..inc.has_data.len() {
@@ -180,7 +193,12 @@ mod tests {
     #[test]
     fn cubic_step_is_the_global_minimum_over_the_feasible_range() {
         // Non-convex quartics with two local minima.
-        for c in [[-1.0, -2.0, 0.5, 1.0], [0.3, -3.0, -0.2, 0.9], [2.0, 1.0, 0.0, 0.0], [-4.0, 1.0, 0.0, 0.0]] {
+        for c in [
+            [-1.0, -2.0, 0.5, 1.0],
+            [0.3, -3.0, -0.2, 0.9],
+            [2.0, 1.0, 0.0, 0.0],
+            [-4.0, 1.0, 0.0, 0.0],
+        ] {
             for x in [0.0, 0.5, 2.0] {
                 let t = best_cubic_step(&c, x);
                 assert!(t >= -x);
@@ -189,7 +207,11 @@ mod tests {
                     let tt = -x + i as f64 * 1e-3;
                     grid_best = grid_best.min(quartic(&c, tt));
                 }
-                assert!(quartic(&c, t) <= grid_best + 1e-9, "c={c:?} x={x}: {} vs {grid_best}", quartic(&c, t));
+                assert!(
+                    quartic(&c, t) <= grid_best + 1e-9,
+                    "c={c:?} x={x}: {} vs {grid_best}",
+                    quartic(&c, t)
+                );
                 assert!(quartic(&c, t) <= 0.0);
             }
         }

@@ -5,9 +5,12 @@
 //! canonical form:
 //! - G^m: the largest control value among those constrained by data is 1
 //!   (G(0) = 1 would be fragile: few samples sit near normal incidence);
-//! - D^m: 2 pi * integral of D(theta_h) cos sin dtheta_h = 1, i.e. the
-//!   projected-area normalisation of a microfacet distribution, taken over
-//!   the interpolated table, so D can be sampled directly;
+//! - D^m: 2 pi * integral over theta_h <= 60 degrees of D(theta_h) cos sin
+//!   dtheta_h = 1: the projected-area normalisation of a microfacet
+//!   distribution, over the part of D that every lobe's data constrain.
+//!   (Over the full hemisphere, a lobe whose G vanishes at grazing angles
+//!   leaves its grazing D cells free; their mass then sets the scale and
+//!   drives s towards overflow. Samplers normalise the full table themselves.)
 //! - F_C: F_C(theta_d = 0) = 1 per channel (its maximum instead when F_C(0)
 //!   is not above 1e-6 of that maximum), so s_C^m carries colour and F its
 //!   angular shape.
@@ -21,12 +24,19 @@ use crate::samples::FitSet;
 
 /// D normalisation weights: sum_k q_k D_k = 2 pi integral D cos sin.
 pub fn d_measure(set: &FitSet) -> Vec<f64> {
-    set.layout.d.quadrature_weights(|t| std::f64::consts::TAU * t.cos() * t.sin())
+    let limit = 60f64.to_radians();
+    set.layout.d.quadrature_weights(|t| {
+        if t <= limit {
+            std::f64::consts::TAU * t.cos() * t.sin()
+        } else {
+            0.0
+        }
+    })
 }
 
 pub fn fill_unconstrained(f: &mut Factors, set: &FitSet) {
     for m in 0..f.lobes() {
-        fill_nearest(&mut f.d[m], &set.d_inc.has_data);
+        fill_d(&mut f.d[m], &set.d_inc.has_data);
         fill_g(&mut f.g[m], &set.g_inc.has_data);
     }
     for ch in 0..3 {
@@ -41,18 +51,33 @@ fn fill_nearest(t: &mut [f64], has: &[bool]) {
     }
     for k in 0..t.len() {
         if !has[k] {
-            let near = *with.iter().min_by_key(|&&i| (i as isize - k as isize).abs()).unwrap();
+            let near = *with
+                .iter()
+                .min_by_key(|&&i| (i as isize - k as isize).abs())
+                .unwrap();
             t[k] = t[near];
         }
     }
 }
 
+/// D cells past the last constrained one hold its value (that is how the
+/// sample set ties them); gaps before it take the nearest constrained cell.
+fn fill_d(d: &mut [f64], has: &[bool]) {
+    fill_nearest(d, has);
+}
+
 fn fill_g(g: &mut [f64], has: &[bool]) {
-    let (Some(first), Some(last)) = (has.iter().position(|&h| h), has.iter().rposition(|&h| h)) else { return };
+    let (Some(first), Some(last)) = (has.iter().position(|&h| h), has.iter().rposition(|&h| h))
+    else {
+        return;
+    };
     for k in 0..first {
         g[k] = g[first];
     }
     let n = g.len() - 1;
+    if last == n {
+        return;
+    }
     for k in last + 1..=n {
         g[k] = g[last] * (n - k) as f64 / (n - last) as f64;
     }
@@ -61,7 +86,12 @@ fn fill_g(g: &mut [f64], has: &[bool]) {
 /// Rescale to the canonical form; leaves every model value unchanged.
 pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) {
     for m in 0..f.lobes() {
-        let gmax = f.g[m].iter().zip(&set.g_inc.has_data).filter(|(_, &h)| h).map(|(&v, _)| v).fold(0.0, f64::max);
+        let gmax = f.g[m]
+            .iter()
+            .zip(&set.g_inc.has_data)
+            .filter(|(_, &h)| h)
+            .map(|(&v, _)| v)
+            .fold(0.0, f64::max);
         if gmax > 0.0 {
             f.g[m].iter_mut().for_each(|v| *v /= gmax);
             f.s[m].iter_mut().for_each(|v| *v *= gmax * gmax);
@@ -74,7 +104,11 @@ pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) {
     }
     for ch in 0..3 {
         let fmax = f.f[ch].iter().cloned().fold(0.0, f64::max);
-        let f0 = if f.f[ch][0] > 1e-6 * fmax { f.f[ch][0] } else { fmax };
+        let f0 = if f.f[ch][0] > 1e-6 * fmax {
+            f.f[ch][0]
+        } else {
+            fmax
+        };
         if f0 > 0.0 {
             f.f[ch].iter_mut().for_each(|v| *v /= f0);
             f.s.iter_mut().for_each(|s| s[ch] *= f0);

@@ -38,13 +38,27 @@ pub fn ggx_g1(theta: f64, alpha: f64) -> f64 {
 
 pub fn initial_factors(layout: Layout, lobes: usize) -> Factors {
     let alphas = start_alphas(lobes);
-    let table = |axis: crate::interp::Axis, f: &dyn Fn(f64) -> f64| (0..axis.len()).map(|k| f(axis.node(k))).collect::<Vec<f64>>();
+    let table = |axis: crate::interp::Axis, f: &dyn Fn(f64) -> f64| {
+        (0..axis.len())
+            .map(|k| f(axis.node(k)))
+            .collect::<Vec<f64>>()
+    };
     Factors {
         layout,
         diffuse: [0.0; 3],
         s: vec![[1.0; 3]; lobes],
-        d: alphas.iter().map(|&a| table(layout.d, &|t| ggx_d(t, a))).collect(),
-        g: alphas.iter().map(|&a| table(layout.g, &|t| ggx_g1(t, a))).collect(),
-        f: [vec![1.0; layout.f.len()], vec![1.0; layout.f.len()], vec![1.0; layout.f.len()]],
+        d: alphas
+            .iter()
+            .map(|&a| table(layout.d, &|t| ggx_d(t, a)))
+            .collect(),
+        g: alphas
+            .iter()
+            .map(|&a| table(layout.g, &|t| ggx_g1(t, a)))
+            .collect(),
+        f: [
+            vec![1.0; layout.f.len()],
+            vec![1.0; layout.f.len()],
+            vec![1.0; layout.f.len()],
+        ],
     }
 }

@@ -20,7 +20,7 @@ pub mod init;
 pub mod state;
 pub mod updates;
 
-pub use executor::{Executor, FitResult, Observer, Stage, SweepReport};
+pub use executor::{Executor, FitResult, Observer, Stage, StageRecord, SweepReport};
 pub use state::Factors;
 
 use serde::{Deserialize, Serialize};
@@ -51,24 +51,45 @@ pub struct FitOptions {
     /// Gaussian smoothing of G (standard deviation in control points) after
     /// each G update, kept only when it does not raise the objective.
     pub smooth_g: Option<f64>,
+    /// After each sweep, try the extrapolated point x + beta (x - x_prev)
+    /// and keep it only if it lowers the objective. AWLS is coordinate
+    /// descent and crawls along narrow valleys; this cuts the sweeps needed.
+    pub accelerate: bool,
+    /// Record the objective after every stage of every sweep (costs one
+    /// pass over the samples per stage; for tests and diagnostics).
+    pub trace_stages: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { lobes: 3, max_sweeps: 100, tol: 1e-5, g_method: GMethod::Cubic, smooth_g: None }
+        FitOptions {
+            lobes: 3,
+            max_sweeps: 100,
+            tol: 1e-5,
+            g_method: GMethod::Cubic,
+            smooth_g: None,
+            accelerate: true,
+            trace_stages: false,
+        }
     }
 }
 
 impl FitOptions {
     pub fn validate(&self) -> Result<(), String> {
         if !(1..=MAX_LOBES).contains(&self.lobes) {
-            return Err(format!("--lobes must be 1 to {MAX_LOBES}, got {}", self.lobes));
+            return Err(format!(
+                "--lobes must be 1 to {MAX_LOBES}, got {}",
+                self.lobes
+            ));
         }
         if self.max_sweeps == 0 {
             return Err("--max-sweeps must be at least 1".into());
         }
         if !(self.tol >= 0.0 && self.tol.is_finite()) {
-            return Err(format!("--tol must be a non-negative number, got {}", self.tol));
+            return Err(format!(
+                "--tol must be a non-negative number, got {}",
+                self.tol
+            ));
         }
         if let Some(s) = self.smooth_g {
             if !(s > 0.0 && s.is_finite()) {
@@ -83,10 +104,16 @@ impl FitOptions {
 pub(crate) const CHUNK: usize = 4096;
 
 /// Deterministic parallel sum of `f` over 0..n, in fixed chunks.
-pub(crate) fn chunked_sum<const K: usize>(n: usize, f: impl Fn(std::ops::Range<usize>) -> [f64; K] + Sync) -> [f64; K] {
+pub(crate) fn chunked_sum<const K: usize>(
+    n: usize,
+    f: impl Fn(std::ops::Range<usize>) -> [f64; K] + Sync,
+) -> [f64; K] {
     use rayon::prelude::*;
     let chunks = n.div_ceil(CHUNK);
-    let partial: Vec<[f64; K]> = (0..chunks).into_par_iter().map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(n))).collect();
+    let partial: Vec<[f64; K]> = (0..chunks)
+        .into_par_iter()
+        .map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(n)))
+        .collect();
     let mut total = [0.0; K];
     for p in partial {
         for k in 0..K {

@@ -27,7 +27,13 @@ impl Factors {
             layout: self.layout,
             diffuse: self.diffuse.map(|x| x as f32),
             fresnel: [v(&self.f[0]), v(&self.f[1]), v(&self.f[2])],
-            lobes: (0..self.lobes()).map(|m| Lobe { s: self.s[m].map(|x| x as f32), d: v(&self.d[m]), g: v(&self.g[m]) }).collect(),
+            lobes: (0..self.lobes())
+                .map(|m| Lobe {
+                    s: self.s[m].map(|x| x as f32),
+                    d: v(&self.d[m]),
+                    g: v(&self.g[m]),
+                })
+                .collect(),
         }
     }
 
@@ -39,7 +45,11 @@ impl Factors {
             s: model.lobes.iter().map(|l| l.s.map(f64::from)).collect(),
             d: model.lobes.iter().map(|l| v(&l.d)).collect(),
             g: model.lobes.iter().map(|l| v(&l.g)).collect(),
-            f: [v(&model.fresnel[0]), v(&model.fresnel[1]), v(&model.fresnel[2])],
+            f: [
+                v(&model.fresnel[0]),
+                v(&model.fresnel[1]),
+                v(&model.fresnel[2]),
+            ],
         }
     }
 }
@@ -70,7 +80,10 @@ pub struct State {
 
 impl State {
     pub fn new(set: &FitSet, factors: Factors) -> Self {
-        let mut s = State { factors, cache: vec![Cache::default(); set.len()] };
+        let mut s = State {
+            factors,
+            cache: vec![Cache::default(); set.len()],
+        };
         s.refresh(set);
         s
     }

@@ -22,7 +22,10 @@ pub(crate) struct Scratch {
 
 impl Scratch {
     pub fn new(n: usize) -> Self {
-        Scratch { s: vec![(0.0, 0.0); n], delta: vec![0.0; n] }
+        Scratch {
+            s: vec![(0.0, 0.0); n],
+            delta: vec![0.0; n],
+        }
     }
 }
 
@@ -88,29 +91,51 @@ pub(crate) fn update_d(set: &FitSet, st: &mut State, m: usize, scratch: &mut Scr
     });
 }
 
-/// Update F_C for each channel. A_j = sum_m s_C^m D^m G^m G^m / (cos cos).
-pub(crate) fn update_f(set: &FitSet, st: &mut State, scratch: &mut Scratch) {
+/// Update F_C for every channel. A_jC = sum_m s_C^m D^m G^m G^m / (cos cos).
+/// The channels are independent, so their scratch is filled and applied in
+/// one pass each.
+pub(crate) fn update_f(set: &FitSet, st: &mut State, scratch: &mut [Scratch; 3]) {
     let lobes = st.factors.lobes();
-    for ch in 0..3 {
-        let s: Vec<f64> = st.factors.s.iter().map(|s| s[ch]).collect();
-        let coef = |c: &Cache, j: usize| (0..lobes).map(|m| s[m] * c.lobe_product(m, set.inv_cc[j])).sum::<f64>();
-        let mut mask = [false; 3];
-        mask[ch] = true;
-        fill_scratch(set, &st.cache, scratch, |c, j| {
-            let mut a = [0.0; 3];
-            a[ch] = coef(c, j);
-            a
-        }, mask);
-        linear_pass(&set.f_inc, &mut st.factors.f[ch], scratch);
-        let delta = &scratch.delta;
-        st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
-            let dx = delta[j];
-            if dx != 0.0 {
-                c.fv[ch] += dx;
-                c.r[ch] += coef(c, j) * dx;
+    let s = st.factors.s.clone();
+    let coef = |c: &Cache, j: usize| {
+        let mut a = [0.0; 3];
+        for m in 0..lobes {
+            let p = c.lobe_product(m, set.inv_cc[j]);
+            for ch in 0..3 {
+                a[ch] += s[m][ch] * p;
             }
-        });
+        }
+        a
+    };
+    {
+        let [s0, s1, s2] = scratch;
+        s0.s.par_iter_mut()
+            .zip(s1.s.par_iter_mut())
+            .zip(s2.s.par_iter_mut())
+            .enumerate()
+            .for_each(|(j, ((o0, o1), o2))| {
+                let c = &st.cache[j];
+                let w = &set.w[j];
+                let a = coef(c, j);
+                *o0 = (w[0] * c.r[0] * a[0], w[0] * a[0] * a[0]);
+                *o1 = (w[1] * c.r[1] * a[1], w[1] * a[1] * a[1]);
+                *o2 = (w[2] * c.r[2] * a[2], w[2] * a[2] * a[2]);
+            });
     }
+    for ch in 0..3 {
+        linear_pass(&set.f_inc, &mut st.factors.f[ch], &mut scratch[ch]);
+    }
+    let [d0, d1, d2] = [&scratch[0].delta, &scratch[1].delta, &scratch[2].delta];
+    st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+        let dx = [d0[j], d1[j], d2[j]];
+        if dx != [0.0; 3] {
+            let a = coef(c, j);
+            for ch in 0..3 {
+                c.fv[ch] += dx[ch];
+                c.r[ch] += a[ch] * dx[ch];
+            }
+        }
+    });
 }
 
 /// S_r and S_a of every sample for coefficients `a` (channels in `mask`).
@@ -177,7 +202,9 @@ pub(crate) fn update_diffuse_and_scales(set: &FitSet, st: &mut State) {
             sums[base + lo * MAXK + hi]
         });
         let rhs = DVector::from_fn(k, |a, _| sums[base + MAXK * MAXK + a]);
-        let current: Vec<f64> = std::iter::once(st.factors.diffuse[ch]).chain(st.factors.s.iter().map(|s| s[ch])).collect();
+        let current: Vec<f64> = std::iter::once(st.factors.diffuse[ch])
+            .chain(st.factors.s.iter().map(|s| s[ch]))
+            .collect();
         let x = nnls_enumerate(&gram, &rhs, &current);
         st.factors.diffuse[ch] = x[0];
         for m in 0..lobes {
