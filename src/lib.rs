@@ -10,6 +10,8 @@ pub mod energy;
 pub mod interp;
 pub mod metrics;
 pub mod model;
+pub mod modelfile;
+pub mod reconstruct;
 pub mod samples;
 pub mod solver;
 pub mod synth;

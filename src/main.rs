@@ -1,6 +1,7 @@
 //! The `npf` command-line program. Each subcommand lives in `npf::cli::<name>`.
 
 use clap::{Parser, Subcommand};
+use npf::cli;
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -16,15 +17,30 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Fit a measured BRDF (MERL .binary) with the shared-factor model.
+    Fit(cli::fit::FitArgs),
+    /// Describe a MERL table or a model file.
+    Info(cli::info::InfoArgs),
+    /// Write a model back as a MERL table.
+    Reconstruct(cli::reconstruct::ReconstructArgs),
+    /// Evaluate a model at given directions.
+    Eval(cli::eval::EvalArgs),
+    /// The main job on self-made data: tabulate an analytic BRDF, fit it, export, reconstruct.
+    Demo(cli::demo::DemoArgs),
     /// Energy-compensation tables, furnace checks and the microsurface simulator.
     #[command(subcommand)]
-    Energy(npf::cli::energy::EnergyCommand),
+    Energy(cli::energy::EnergyCommand),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Energy(cmd) => npf::cli::energy::run(cmd),
+        Command::Fit(a) => cli::fit::run(a),
+        Command::Info(a) => cli::info::run(a),
+        Command::Reconstruct(a) => cli::reconstruct::run(a),
+        Command::Eval(a) => cli::eval::run(a),
+        Command::Demo(a) => cli::demo::run(a),
+        Command::Energy(cmd) => cli::energy::run(cmd),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -65,11 +65,3 @@ pub fn known_factor_model(layout: Layout, alphas: &[f64]) -> Model {
         lobes,
     }
 }
-
-/// A model evaluated at every MERL cell's node (missing below the horizon).
-pub fn model_table(model: &Model) -> MerlTable {
-    MerlTable::from_fn(|th, td, pd| {
-        let a = Angles::from_half_diff(th, 0.0, td, pd);
-        (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| model.eval_angles(&a))
-    })
-}

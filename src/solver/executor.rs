@@ -8,6 +8,7 @@ use super::updates::{update_d, update_diffuse_and_scales, update_f, Scratch};
 use super::FitOptions;
 use crate::model::Model;
 use crate::samples::FitSet;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// A step of a sweep.
@@ -138,6 +139,7 @@ impl<'a> Executor<'a> {
             Scratch::new(set.len()),
             Scratch::new(set.len()),
         ];
+        let mut g_work = Vec::new();
         update_diffuse_and_scales(set, &mut st);
         gauge(set, &mut st, &measure);
         let initial = st.objective(set);
@@ -162,7 +164,7 @@ impl<'a> Executor<'a> {
             update_f(set, &mut st, &mut f_scratch);
             rec.mark(Stage::F, set, &st);
             for m in 0..lobes {
-                g_passes.push(update_g(set, &mut st, m, opts.g_method, &mut scratch));
+                g_passes.push(update_g(set, &mut st, m, opts.g_method, &mut g_work));
                 rec.mark(Stage::G(m), set, &st);
                 if let Some(sigma) = opts.smooth_g {
                     let before = st.objective(set);
@@ -179,7 +181,11 @@ impl<'a> Executor<'a> {
             }
             update_diffuse_and_scales(set, &mut st);
             rec.mark(Stage::DiffuseAndScales, set, &st);
-            gauge(set, &mut st, &measure);
+            if sweep % 10 == 0 {
+                gauge(set, &mut st, &measure);
+            } else {
+                gauge_rescale(set, &mut st, &measure);
+            }
             let mut e = st.objective(set);
             rec.mark(Stage::Gauge, set, &st);
             let mut extrapolated = false;
@@ -233,6 +239,25 @@ impl<'a> Executor<'a> {
             seconds: t0.elapsed().as_secs_f64(),
         })
     }
+}
+
+/// The gauge applied to the caches by rescaling (every model value, hence
+/// every residual, is unchanged), without re-reading the stencils. Filled
+/// entries are read by no sample, so they need no cache update either.
+fn gauge_rescale(set: &FitSet, st: &mut State, measure: &[f64]) {
+    fill_unconstrained(&mut st.factors, set);
+    let k = normalise(&mut st.factors, set, measure);
+    let lobes = st.factors.lobes();
+    st.cache.par_iter_mut().for_each(|c| {
+        for m in 0..lobes {
+            c.dv[m] *= k.d[m];
+            c.gi[m] *= k.g[m];
+            c.go[m] *= k.g[m];
+        }
+        for ch in 0..3 {
+            c.fv[ch] *= k.f[ch];
+        }
+    });
 }
 
 fn gauge(set: &FitSet, st: &mut State, measure: &[f64]) {

@@ -16,7 +16,6 @@
 //! through a (theta_i, theta_o) pair); the sums inside one are parallel.
 
 use super::state::{Cache, State};
-use super::updates::{fill_scratch, Scratch};
 use super::{GMethod, CHUNK};
 use crate::samples::FitSet;
 use rayon::prelude::*;
@@ -84,12 +83,38 @@ pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
     }
 }
 
+/// Per-sample state of one lobe's G pass, packed so the per-point loops
+/// touch 32 bytes per sample: G(theta_i), G(theta_o), S_r, S_a.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct GWork {
+    gi: f64,
+    go: f64,
+    sr: f64,
+    sa: f64,
+}
+
+/// Shared mutable access to distinct elements from parallel tasks.
+struct Disjoint<'a, T>(&'a [std::cell::UnsafeCell<T>]);
+// SAFETY: callers only touch distinct indices from different tasks.
+unsafe impl<T: Send> Sync for Disjoint<'_, T> {}
+impl<'a, T> Disjoint<'a, T> {
+    fn new(v: &'a mut [T]) -> Self {
+        // SAFETY: UnsafeCell<T> has the same layout as T, and the exclusive borrow is held for 'a.
+        Disjoint(unsafe { &*(v as *mut [T] as *const [std::cell::UnsafeCell<T>]) })
+    }
+    /// SAFETY: no two concurrent calls may pass the same index.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn get(&self, i: usize) -> &mut T {
+        &mut *self.0[i].get()
+    }
+}
+
 pub(crate) fn update_g(
     set: &FitSet,
     st: &mut State,
     m: usize,
     method: GMethod,
-    scratch: &mut Scratch,
+    work: &mut Vec<GWork>,
 ) -> GPassStats {
     let mut stats = GPassStats {
         worst_accepted: f64::NEG_INFINITY,
@@ -103,13 +128,25 @@ pub(crate) fn update_g(
         let p = c.dv[m] * set.inv_cc[j];
         [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
     };
-    fill_scratch(set, &st.cache, scratch, coef, [true; 3]);
-    // Keep the old products to move the residuals once at the end.
-    scratch
-        .delta
-        .par_iter_mut()
+    work.resize(set.len(), GWork::default());
+    work.par_iter_mut()
         .zip(&st.cache)
-        .for_each(|(d, c)| *d = c.gi[m] * c.go[m]);
+        .enumerate()
+        .for_each(|(j, (wk, c))| {
+            let b = coef(c, j);
+            let w = &set.w[j];
+            let (mut sr, mut sa) = (0.0, 0.0);
+            for ch in 0..3 {
+                sr += w[ch] * c.r[ch] * b[ch];
+                sa += w[ch] * b[ch] * b[ch];
+            }
+            *wk = GWork {
+                gi: c.gi[m],
+                go: c.go[m],
+                sr,
+                sa,
+            };
+        });
     let inc = &set.g_inc;
     let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
     for k in 0..inc.has_data.len() {
@@ -118,8 +155,7 @@ pub(crate) fn update_g(
         }
         let range = inc.entries(k);
         let chunks = range.len().div_ceil(CHUNK);
-        let cache = &st.cache;
-        let sv = &scratch.s;
+        let wv = &work[..];
         let partial: Vec<[f64; 4]> = (0..chunks)
             .into_par_iter()
             .map(|ci| {
@@ -127,16 +163,14 @@ pub(crate) fn update_g(
                 let hi = (lo + CHUNK).min(range.end);
                 let mut acc = [0.0; 4];
                 for e in lo..hi {
-                    let j = inc.sample[e] as usize;
+                    let x = &wv[inc.sample[e] as usize];
                     let (u, v) = (inc.u[e], inc.v[e]);
-                    let c = &cache[j];
-                    let (sr, sa) = sv[j];
-                    let p1 = c.gi[m] * v + c.go[m] * u;
+                    let p1 = x.gi * v + x.go * u;
                     let p2 = u * v;
-                    acc[0] += 2.0 * sr * p1;
-                    acc[1] += sa * p1 * p1 + 2.0 * sr * p2;
-                    acc[2] += 2.0 * sa * p1 * p2;
-                    acc[3] += sa * p2 * p2;
+                    acc[0] += 2.0 * x.sr * p1;
+                    acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
+                    acc[2] += 2.0 * x.sa * p1 * p2;
+                    acc[3] += x.sa * p2 * p2;
                 }
                 acc
             })
@@ -161,28 +195,39 @@ pub(crate) fn update_g(
         stats.accepted += 1;
         stats.worst_accepted = stats.worst_accepted.max(de);
         st.factors.g[m][k] = x + t;
-        for e in range {
-            let j = inc.sample[e] as usize;
-            let (u, v) = (inc.u[e], inc.v[e]);
-            let c = &mut st.cache[j];
-            let p1 = c.gi[m] * v + c.go[m] * u;
-            let p2 = u * v;
-            let sj = &mut scratch.s[j];
-            sj.0 += sj.1 * (p1 * t + p2 * t * t);
-            c.gi[m] += u * t;
-            c.go[m] += v * t;
-        }
-    }
-    let old = &scratch.delta;
-    st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
-        let change = c.gi[m] * c.go[m] - old[j];
-        if change != 0.0 {
-            let b = coef(c, j);
-            for ch in 0..3 {
-                c.r[ch] += b[ch] * change;
+        // Each sample appears once in a point's list, so the entries touch
+        // distinct samples and can be applied in parallel.
+        let shared = Disjoint::new(&mut work[..]);
+        (0..chunks).into_par_iter().for_each(|ci| {
+            let lo = range.start + ci * CHUNK;
+            let hi = (lo + CHUNK).min(range.end);
+            for e in lo..hi {
+                // SAFETY: distinct samples within one point's list (see GIncidence::build).
+                let x = unsafe { shared.get(inc.sample[e] as usize) };
+                let (u, v) = (inc.u[e], inc.v[e]);
+                let p1 = x.gi * v + x.go * u;
+                let p2 = u * v;
+                x.sr += x.sa * (p1 * t + p2 * t * t);
+                x.gi += u * t;
+                x.go += v * t;
             }
-        }
-    });
+        });
+    }
+    st.cache
+        .par_iter_mut()
+        .zip(&work[..])
+        .enumerate()
+        .for_each(|(j, (c, x))| {
+            let change = x.gi * x.go - c.gi[m] * c.go[m];
+            if change != 0.0 {
+                let b = coef(c, j);
+                for ch in 0..3 {
+                    c.r[ch] += b[ch] * change;
+                }
+                c.gi[m] = x.gi;
+                c.go[m] = x.go;
+            }
+        });
     stats
 }
 

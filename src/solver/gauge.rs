@@ -83,9 +83,23 @@ fn fill_g(g: &mut [f64], has: &[bool]) {
     }
 }
 
+/// The factors by which `normalise` multiplied each table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scales {
+    pub d: Vec<f64>,
+    pub g: Vec<f64>,
+    pub f: [f64; 3],
+}
+
 /// Rescale to the canonical form; leaves every model value unchanged.
-pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) {
-    for m in 0..f.lobes() {
+pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) -> Scales {
+    let lobes = f.lobes();
+    let mut k = Scales {
+        d: vec![1.0; lobes],
+        g: vec![1.0; lobes],
+        f: [1.0; 3],
+    };
+    for m in 0..lobes {
         let gmax = f.g[m]
             .iter()
             .zip(&set.g_inc.has_data)
@@ -95,11 +109,13 @@ pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) {
         if gmax > 0.0 {
             f.g[m].iter_mut().for_each(|v| *v /= gmax);
             f.s[m].iter_mut().for_each(|v| *v *= gmax * gmax);
+            k.g[m] = 1.0 / gmax;
         }
         let integral: f64 = f.d[m].iter().zip(d_measure).map(|(v, q)| v * q).sum();
         if integral > 0.0 {
             f.d[m].iter_mut().for_each(|v| *v /= integral);
             f.s[m].iter_mut().for_each(|v| *v *= integral);
+            k.d[m] = 1.0 / integral;
         }
     }
     for ch in 0..3 {
@@ -112,6 +128,8 @@ pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) {
         if f0 > 0.0 {
             f.f[ch].iter_mut().for_each(|v| *v /= f0);
             f.s.iter_mut().for_each(|s| s[ch] *= f0);
+            k.f[ch] = 1.0 / f0;
         }
     }
+    k
 }

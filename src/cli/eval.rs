@@ -1,0 +1,43 @@
+//! `npf eval MODEL THETA_I PHI_I THETA_O PHI_O`: model values at directions.
+
+use super::{CliError, CliResult};
+use crate::modelfile;
+use clap::Args;
+use npf_data_loaders::geometry::spherical;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Model file (.json or .npfb).
+    pub model: PathBuf,
+    /// Directions in degrees, four numbers per configuration:
+    /// theta_i phi_i theta_o phi_o [theta_i phi_i theta_o phi_o ...].
+    #[arg(required = true, num_args = 4.., allow_negative_numbers = true)]
+    pub angles: Vec<f64>,
+}
+
+pub fn run(args: EvalArgs) -> CliResult {
+    if args.angles.len() % 4 != 0 {
+        return Err(CliError::Message(format!(
+            "eval takes angles in groups of four (theta_i phi_i theta_o phi_o), got {}",
+            args.angles.len()
+        )));
+    }
+    if let Some(v) = args.angles.iter().find(|v| !v.is_finite()) {
+        return Err(CliError::Message(format!(
+            "angle {v} is not a finite number"
+        )));
+    }
+    let model = modelfile::read(&args.model)?.model;
+    println!("theta_i,phi_i,theta_o,phi_o,r,g,b");
+    for q in args.angles.chunks(4) {
+        let wi = spherical(q[0].to_radians(), q[1].to_radians());
+        let wo = spherical(q[2].to_radians(), q[3].to_radians());
+        let v = model.eval(wi, wo);
+        println!(
+            "{},{},{},{},{:.9e},{:.9e},{:.9e}",
+            q[0], q[1], q[2], q[3], v[0], v[1], v[2]
+        );
+    }
+    Ok(())
+}

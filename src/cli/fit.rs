@@ -1,0 +1,221 @@
+//! `npf fit IN.binary -o MODEL.{json,npfb}`.
+
+use super::{check_output, CliError, CliResult};
+use crate::metrics::{compare_model, Metrics};
+use crate::model::Layout;
+use crate::modelfile::{self, FitInfo, ModelFile};
+use crate::samples::{FitSet, SampleOptions, Weighting};
+use crate::solver::{Executor, FitOptions, FitResult, GMethod, SweepReport};
+use clap::Args;
+use npf_data_loaders::{MeasuredSamples, MerlTable};
+use std::path::{Path, PathBuf};
+
+/// Options shared by every command that fits.
+#[derive(Args, Clone, Debug)]
+pub struct FitConfig {
+    /// Specular lobes (1 to 3).
+    #[arg(long, default_value_t = 3)]
+    pub lobes: usize,
+    /// Residual weighting (see docs/fitting.md).
+    #[arg(long, value_enum, default_value_t = Weighting::Compressive)]
+    pub weighting: Weighting,
+    /// Floor of the compressive weight (cosine-weighted 1/sr).
+    #[arg(long, default_value_t = 1e-3)]
+    pub epsilon: f64,
+    /// Grazing cut-off: leave out samples with theta_i or theta_o above this (degrees).
+    #[arg(long, default_value_t = 85.0)]
+    pub max_theta: f64,
+    /// D cells above this half angle (degrees) hold the last free cell's value.
+    #[arg(long, default_value_t = 75.0)]
+    pub max_theta_h: f64,
+    /// Stop after this many sweeps.
+    #[arg(long, default_value_t = 100)]
+    pub max_sweeps: usize,
+    /// Stop when a sweep lowers the objective by less than this fraction.
+    #[arg(long, default_value_t = 1e-5)]
+    pub tol: f64,
+    /// How G control points are updated.
+    #[arg(long, value_enum, default_value_t = GMethod::Cubic)]
+    pub g_method: GMethod,
+    /// Gaussian smoothing of G after each update (sigma in control points), kept only if it does not raise the objective.
+    #[arg(long)]
+    pub smooth_g: Option<f64>,
+    /// Disable the extrapolation step between sweeps (plain AWLS).
+    #[arg(long)]
+    pub no_accelerate: bool,
+    /// Worker threads (0: all cores). Results are identical for any count.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+}
+
+impl FitConfig {
+    pub fn sample_options(&self) -> SampleOptions {
+        SampleOptions {
+            weighting: self.weighting,
+            epsilon: self.epsilon,
+            max_theta_deg: self.max_theta,
+            max_theta_h_deg: self.max_theta_h,
+        }
+    }
+
+    pub fn fit_options(&self) -> FitOptions {
+        FitOptions {
+            lobes: self.lobes,
+            max_sweeps: self.max_sweeps,
+            tol: self.tol,
+            g_method: self.g_method,
+            smooth_g: self.smooth_g,
+            accelerate: !self.no_accelerate,
+            trace_stages: false,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct FitArgs {
+    /// Measured BRDF (MERL .binary).
+    pub input: PathBuf,
+    /// Output model; the extension picks the form (.json or .npfb).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub config: FitConfig,
+    /// Overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
+    /// No progress bar or summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// A finished fit with its provenance and errors against the input.
+pub struct Fitted {
+    pub result: FitResult,
+    pub info: FitInfo,
+    pub metrics: Metrics,
+}
+
+/// Fit measured samples with a configuration, with an optional progress bar.
+pub fn fit_samples(
+    samples: &MeasuredSamples,
+    config: &FitConfig,
+    progress: bool,
+) -> Result<Fitted, CliError> {
+    let opts = config.fit_options();
+    opts.validate().map_err(CliError::Message)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(config.threads)
+        .build()
+        .map_err(|e| CliError::Message(format!("cannot start {} threads: {e}", config.threads)))?;
+    let threads = pool.current_num_threads();
+    pool.install(|| {
+        let set = FitSet::build(samples, Layout::default(), config.sample_options())
+            .map_err(|e| CliError::Message(e.to_string()))?;
+        let bar = if progress {
+            indicatif::ProgressBar::new(opts.max_sweeps as u64)
+        } else {
+            indicatif::ProgressBar::hidden()
+        };
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} fitting [{bar:30}] {pos}/{len} sweeps  {msg}  {elapsed}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        let mut observer = |r: &SweepReport| {
+            bar.set_position(r.sweep as u64);
+            bar.set_message(format!(
+                "objective {:.6e} (-{:.1e})",
+                r.objective, r.rel_decrease
+            ));
+        };
+        let result = Executor::new(&set, opts)
+            .observe(&mut observer)
+            .run()
+            .map_err(CliError::Message)?;
+        bar.finish_and_clear();
+        let metrics = compare_model(samples, config.max_theta, &result.model);
+        let info = FitInfo {
+            source: samples.source.clone(),
+            npf_version: env!("CARGO_PKG_VERSION").into(),
+            lobes: opts.lobes,
+            weighting: format!("{:?}", config.weighting).to_lowercase(),
+            epsilon: config.epsilon,
+            max_theta_deg: config.max_theta,
+            max_theta_h_deg: config.max_theta_h,
+            g_method: format!("{:?}", config.g_method).to_lowercase(),
+            smooth_g: config.smooth_g,
+            sweeps: result.history.len(),
+            converged: result.converged,
+            objective: result.objective,
+            seconds: result.seconds,
+            threads,
+            samples: set.len(),
+            metrics: Some(metrics),
+            selection: None,
+        };
+        Ok(Fitted {
+            result,
+            info,
+            metrics,
+        })
+    })
+}
+
+pub fn print_summary(f: &Fitted) {
+    let m = &f.metrics;
+    eprintln!(
+        "fitted {} parameters ({} lobes) in {:.2} s, {} sweeps ({}), objective {:.6e}",
+        f.result.model.param_count(),
+        f.info.lobes,
+        f.info.seconds,
+        f.info.sweeps,
+        if f.info.converged {
+            "converged"
+        } else {
+            "sweep limit"
+        },
+        f.info.objective
+    );
+    eprintln!(
+        "errors over {} samples (theta <= {} deg): cosine-weighted RMSE {:.4e} (relative {:.4e}), log RMSE {:.4e}",
+        m.samples, m.max_theta_deg, m.cos_rmse, m.rel_cos_rmse, m.log_rmse
+    );
+}
+
+pub fn load_table(path: &Path) -> Result<MeasuredSamples, CliError> {
+    let table = MerlTable::read(path)?;
+    let samples = table.samples(&path.display().to_string());
+    if samples.samples.is_empty() {
+        return Err(CliError::Message(format!(
+            "{}: the table holds no valid samples (all cells missing)",
+            path.display()
+        )));
+    }
+    Ok(samples)
+}
+
+pub fn run(args: FitArgs) -> CliResult {
+    modelfile::Form::of(&args.output)?;
+    check_output(&args.output, args.force)?;
+    args.config
+        .fit_options()
+        .validate()
+        .map_err(CliError::Message)?;
+    let samples = load_table(&args.input)?;
+    let fitted = fit_samples(&samples, &args.config, !args.quiet)?;
+    modelfile::write(
+        &args.output,
+        &ModelFile {
+            model: fitted.result.model.clone(),
+            fit: Some(fitted.info.clone()),
+        },
+        args.force,
+    )?;
+    if !args.quiet {
+        print_summary(&fitted);
+        eprintln!("wrote {}", args.output.display());
+    }
+    Ok(())
+}
