@@ -7,10 +7,27 @@ fn main() {
         .map(|s| s.parse().unwrap())
         .unwrap_or(3);
     let t = std::time::Instant::now();
-    let table = npf::loaders::MerlTable::read(path.as_ref()).unwrap();
+    let table = match path.as_str() {
+        "known" => npf::reconstruct::to_merl(&npf::synth::known_factor_model(
+            Layout::default(),
+            &[0.05, 0.2, 0.5],
+        )),
+        _ => npf::loaders::MerlTable::read(path.as_ref()).unwrap(),
+    };
     let samples = table.samples(&path);
     let t_load = t.elapsed().as_secs_f64();
-    let set = FitSet::build(&samples, Layout::default(), SampleOptions::default()).unwrap();
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let mut so = SampleOptions::default();
+    if let Some(v) = env("THH") {
+        so.max_theta_h_deg = v;
+    }
+    if std::env::var("L2").is_ok() {
+        so.weighting = Weighting::CosineL2;
+    }
+    if let Some(v) = env("TH") {
+        so.max_theta_deg = v;
+    }
+    let set = FitSet::build(&samples, Layout::default(), so).unwrap();
     println!(
         "load {t_load:.2}s build {:.2}s stats {:?} ~{} MB",
         t.elapsed().as_secs_f64() - t_load,
@@ -42,11 +59,20 @@ fn main() {
         }
     };
     let accelerate = std::env::var("NOACC").is_err();
-    let opts = FitOptions {
+    let mut opts = FitOptions {
         lobes,
         accelerate,
         ..Default::default()
     };
+    if let Some(v) = env("MAXS") {
+        opts.max_sweeps = v as usize;
+    }
+    if std::env::var("FREE").is_ok() {
+        opts.d_monotone_from_deg = None;
+    }
+    if let Some(v) = env("TOL") {
+        opts.tol = v;
+    }
     let res = Executor::new(&set, opts).observe(&mut obs).run().unwrap();
     println!(
         "fit {:.2}s sweeps {} converged {} E0 {:.4e} E {:.4e}",
@@ -58,11 +84,18 @@ fn main() {
     );
     let m = metrics::compare_model(&samples, 85.0, &res.model);
     println!("{m:?}");
+    for cut in [30.0, 60.0, 80.0] {
+        println!(
+            "cut {cut}: {:?}",
+            metrics::compare_model(&samples, cut, &res.model)
+        );
+    }
     for (i, l) in res.model.lobes.iter().enumerate() {
         println!(
-            "lobe {i} s {:?} D[0..4] {:?} G[0,30,60,80,85] {:?}",
+            "lobe {i} s {:?} D[0..4] {:?} Dmax {:.3e} G[0,30,60,80,85] {:?}",
             l.s,
             &l.d[..4],
+            l.d.iter().cloned().fold(0f32, f32::max),
             [l.g[0], l.g[30], l.g[60], l.g[80], l.g[85]]
         );
     }

@@ -29,10 +29,10 @@ pub struct FitConfig {
     #[arg(long, default_value_t = 75.0)]
     pub max_theta_h: f64,
     /// Stop after this many sweeps.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 50)]
     pub max_sweeps: usize,
     /// Stop when a sweep lowers the objective by less than this fraction.
-    #[arg(long, default_value_t = 1e-5)]
+    #[arg(long, default_value_t = 3e-3)]
     pub tol: f64,
     /// How G control points are updated.
     #[arg(long, value_enum, default_value_t = GMethod::Cubic)]
@@ -40,6 +40,13 @@ pub struct FitConfig {
     /// Gaussian smoothing of G after each update (sigma in control points), kept only if it does not raise the objective.
     #[arg(long)]
     pub smooth_g: Option<f64>,
+    /// D may not rise with theta_h past this angle (degrees), which stops D
+    /// and G trading scale at grazing angles.
+    #[arg(long, default_value_t = 60.0, conflicts_with = "free_d_tail")]
+    pub d_monotone_from: f64,
+    /// Leave the D tail unconstrained.
+    #[arg(long)]
+    pub free_d_tail: bool,
     /// Disable the extrapolation step between sweeps (plain AWLS).
     #[arg(long)]
     pub no_accelerate: bool,
@@ -67,6 +74,7 @@ impl FitConfig {
             smooth_g: self.smooth_g,
             accelerate: !self.no_accelerate,
             trace_stages: false,
+            d_monotone_from_deg: (!self.free_d_tail).then_some(self.d_monotone_from),
         }
     }
 }

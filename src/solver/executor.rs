@@ -132,6 +132,7 @@ impl<'a> Executor<'a> {
         if factors.layout != set.layout {
             return Err("the starting model's layout differs from the sample set's".into());
         }
+        let monotone_from = d_monotone_from(set, opts.d_monotone_from_deg);
         let mut st = State::new(set, factors);
         let mut scratch = Scratch::new(set.len());
         let mut f_scratch = [
@@ -158,7 +159,7 @@ impl<'a> Executor<'a> {
             let mut reverted = 0;
             let lobes = st.factors.lobes();
             for m in 0..lobes {
-                update_d(set, &mut st, m, &mut scratch);
+                update_d(set, &mut st, m, &mut scratch, monotone_from);
                 rec.mark(Stage::D(m), set, &st);
             }
             update_f(set, &mut st, &mut f_scratch);
@@ -192,7 +193,7 @@ impl<'a> Executor<'a> {
             if opts.accelerate {
                 if let Some(old) = &prev_factors {
                     let current = st.factors.clone();
-                    st.factors = extrapolate(&current, old, beta);
+                    st.factors = extrapolate(&current, old, beta, monotone_from);
                     gauge(set, &mut st, &measure);
                     let trial = st.objective(set);
                     if trial < e {
@@ -266,8 +267,20 @@ fn gauge(set: &FitSet, st: &mut State, measure: &[f64]) {
     st.refresh(set);
 }
 
-/// x + beta (x - old), clamped at 0, for every table (both in canonical form).
-fn extrapolate(x: &Factors, old: &Factors, beta: f64) -> Factors {
+/// The first D cell whose half angle lies past `deg` (none: `usize::MAX`).
+fn d_monotone_from(set: &FitSet, deg: Option<f64>) -> usize {
+    let Some(deg) = deg else {
+        return usize::MAX;
+    };
+    let axis = set.layout.d;
+    (0..axis.len())
+        .find(|&k| axis.node(k) > deg.to_radians())
+        .unwrap_or(usize::MAX)
+}
+
+/// x + beta (x - old), clamped at 0, for every table (both in canonical
+/// form); D tails are projected back onto non-increasing ones.
+fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> Factors {
     let mv = |a: f64, b: f64| (a + beta * (a - b)).max(0.0);
     let tab = |a: &Vec<f64>, b: &Vec<f64>| {
         a.iter()
@@ -282,7 +295,15 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64) -> Factors {
         s: (0..lobes)
             .map(|m| std::array::from_fn(|c| mv(x.s[m][c], old.s[m][c])))
             .collect(),
-        d: (0..lobes).map(|m| tab(&x.d[m], &old.d[m])).collect(),
+        d: (0..lobes)
+            .map(|m| {
+                let mut d = tab(&x.d[m], &old.d[m]);
+                for k in monotone_from.max(1)..d.len() {
+                    d[k] = d[k].min(d[k - 1]);
+                }
+                d
+            })
+            .collect(),
         g: (0..lobes).map(|m| tab(&x.g[m], &old.g[m])).collect(),
         f: std::array::from_fn(|c| tab(&x.f[c], &old.f[c])),
     }

@@ -58,18 +58,25 @@ pub struct FitOptions {
     /// Record the objective after every stage of every sweep (costs one
     /// pass over the samples per stage; for tests and diagnostics).
     pub trace_stages: bool,
+    /// D^m past this half angle (degrees) may not rise above the cell
+    /// before it. There only grazing samples, where G is small, see D, so
+    /// D and G can trade scale without bound (D -> 1e30, G -> 1e-16); a
+    /// non-increasing tail, as every microfacet NDF of a gloss lobe has,
+    /// removes that freedom. `None` leaves the tail free.
+    pub d_monotone_from_deg: Option<f64>,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             lobes: 3,
-            max_sweeps: 100,
-            tol: 1e-5,
+            max_sweeps: 50,
+            tol: 3e-3,
             g_method: GMethod::Cubic,
             smooth_g: None,
             accelerate: true,
             trace_stages: false,
+            d_monotone_from_deg: Some(60.0),
         }
     }
 }
@@ -90,6 +97,13 @@ impl FitOptions {
                 "--tol must be a non-negative number, got {}",
                 self.tol
             ));
+        }
+        if let Some(t) = self.d_monotone_from_deg {
+            if !(0.0..=90.0).contains(&t) {
+                return Err(format!(
+                    "--d-monotone-from must be 0 to 90 degrees, got {t}"
+                ));
+            }
         }
         if let Some(s) = self.smooth_g {
             if !(s > 0.0 && s.is_finite()) {

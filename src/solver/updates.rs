@@ -32,8 +32,16 @@ impl Scratch {
 /// One Gauss-Seidel pass over the entries of `table`, colour by colour;
 /// entries of one colour are solved in parallel. `scratch.s` must hold
 /// (S_r, S_a) for every sample; on return `scratch.delta` holds each sample's
-/// change of the interpolated value.
-pub(crate) fn linear_pass(inc: &Incidence, table: &mut [f64], scratch: &mut Scratch) {
+/// change of the interpolated value. Entries from `monotone_from` on are
+/// kept at most max(previous entry, current value): an interval holding the
+/// current value, so the clamped parabola minimum still never raises the
+/// objective, and a non-increasing tail stays non-increasing.
+pub(crate) fn linear_pass(
+    inc: &Incidence,
+    table: &mut [f64],
+    scratch: &mut Scratch,
+    monotone_from: usize,
+) {
     scratch.delta.par_iter_mut().for_each(|d| *d = 0.0);
     for color in &inc.colors {
         let steps: Vec<f64> = color
@@ -47,7 +55,12 @@ pub(crate) fn linear_pass(inc: &Incidence, table: &mut [f64], scratch: &mut Scra
                     den += om * om * sa;
                 }
                 if den > 0.0 {
-                    (table[k] - num / den).max(0.0) - table[k]
+                    let upper = if k >= monotone_from && k > 0 {
+                        table[k - 1].max(table[k])
+                    } else {
+                        f64::INFINITY
+                    };
+                    (table[k] - num / den).clamp(0.0, upper) - table[k]
                 } else {
                     0.0
                 }
@@ -70,14 +83,20 @@ pub(crate) fn linear_pass(inc: &Incidence, table: &mut [f64], scratch: &mut Scra
 }
 
 /// Update D^m. A_jC = s_C^m F_C G^m(theta_i) G^m(theta_o) / (cos cos).
-pub(crate) fn update_d(set: &FitSet, st: &mut State, m: usize, scratch: &mut Scratch) {
+pub(crate) fn update_d(
+    set: &FitSet,
+    st: &mut State,
+    m: usize,
+    scratch: &mut Scratch,
+    monotone_from: usize,
+) {
     let s = st.factors.s[m];
     let coef = |c: &Cache, j: usize| {
         let p = c.gi[m] * c.go[m] * set.inv_cc[j];
         [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
     };
     fill_scratch(set, &st.cache, scratch, |c, j| coef(c, j), [true; 3]);
-    linear_pass(&set.d_inc, &mut st.factors.d[m], scratch);
+    linear_pass(&set.d_inc, &mut st.factors.d[m], scratch, monotone_from);
     let delta = &scratch.delta;
     st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
         let dx = delta[j];
@@ -123,7 +142,12 @@ pub(crate) fn update_f(set: &FitSet, st: &mut State, scratch: &mut [Scratch; 3])
             });
     }
     for ch in 0..3 {
-        linear_pass(&set.f_inc, &mut st.factors.f[ch], &mut scratch[ch]);
+        linear_pass(
+            &set.f_inc,
+            &mut st.factors.f[ch],
+            &mut scratch[ch],
+            usize::MAX,
+        );
     }
     let [d0, d1, d2] = [&scratch[0].delta, &scratch[1].delta, &scratch[2].delta];
     st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
