@@ -21,6 +21,14 @@ pub struct Metrics {
     pub log_rmse: f64,
 }
 
+impl Metrics {
+    pub fn is_finite(&self) -> bool {
+        [self.cos_rmse, self.rel_cos_rmse, self.log_rmse]
+            .iter()
+            .all(|v| v.is_finite())
+    }
+}
+
 pub fn compare(
     samples: &MeasuredSamples,
     max_theta_deg: f64,
@@ -59,7 +67,12 @@ pub fn compare(
         samples: sums[3] as usize,
         max_theta_deg,
         cos_rmse: (sums[0] / n).sqrt(),
-        rel_cos_rmse: (sums[0] / sums[1]).sqrt(),
+        // Zero error against a black reference is zero relative error.
+        rel_cos_rmse: if sums[0] == 0.0 {
+            0.0
+        } else {
+            (sums[0] / sums[1]).sqrt()
+        },
         log_rmse: (sums[2] / n).sqrt(),
     }
 }

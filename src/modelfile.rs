@@ -42,6 +42,9 @@ pub struct FitInfo {
     pub epsilon: f64,
     pub max_theta_deg: f64,
     pub max_theta_h_deg: f64,
+    /// Where D was constrained to be non-increasing (absent: a free tail).
+    #[serde(default)]
+    pub d_monotone_from_deg: Option<f64>,
     pub g_method: String,
     pub smooth_g: Option<f64>,
     pub sweeps: usize,

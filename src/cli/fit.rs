@@ -152,6 +152,7 @@ pub fn fit_samples(
             epsilon: config.epsilon,
             max_theta_deg: config.max_theta,
             max_theta_h_deg: config.max_theta_h,
+            d_monotone_from_deg: config.fit_options().d_monotone_from_deg,
             g_method: format!("{:?}", config.g_method).to_lowercase(),
             smooth_g: config.smooth_g,
             sweeps: result.history.len(),
@@ -160,7 +161,8 @@ pub fn fit_samples(
             seconds: result.seconds,
             threads,
             samples: set.len(),
-            metrics: Some(metrics),
+            // JSON has no NaN: a relative error against an all-black table is undefined.
+            metrics: Some(metrics).filter(Metrics::is_finite),
             selection: None,
         };
         Ok(Fitted {
