@@ -1,0 +1,128 @@
+//! Fit benchmark: fits every MERL table in a folder with the default
+//! configuration (what `npf fit IN -o OUT` does) and prints a Markdown table
+//! per material: wall time (load, sample set, fit), sweeps, final objective,
+//! cosine-weighted and log RMSE, peak memory, and where the fit's time goes.
+//!
+//!     cargo run --release --example fit_bench -- DATA_DIR [--threads N]
+//!
+//! Each material runs in its own child process so that its peak resident
+//! memory (Linux VmHWM) is its own. Make DATA_DIR with
+//! `python3 ../shared/tools/nbrdf2merl.py ../shared/data/merl-nbrdf --out-dir DATA_DIR`.
+
+use npf::loaders::MerlTable;
+use npf::metrics::compare_model;
+use npf::model::Layout;
+use npf::samples::{FitSet, SampleOptions};
+use npf::solver::{Executor, FitOptions, Stage};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let threads = args
+        .iter()
+        .position(|a| a == "--threads")
+        .and_then(|i| args.get(i + 1))
+        .map(|v| v.parse::<usize>().expect("--threads N"))
+        .unwrap_or(0);
+    if let Some(i) = args.iter().position(|a| a == "--one") {
+        let result = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(|| one(Path::new(&args[i + 1])));
+        match result {
+            Ok(line) => println!("{line}"),
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(1);
+            }
+        }
+        return;
+    }
+    let Some(dir) = args.first().filter(|a| !a.starts_with("--")) else {
+        eprintln!("usage: fit_bench DATA_DIR [--threads N]");
+        std::process::exit(2);
+    };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| {
+            eprintln!("{dir}: {e}");
+            std::process::exit(1)
+        })
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "binary"))
+        .collect();
+    files.sort();
+    println!("| material | samples fitted | load + set (s) | fit (s) | wall (s) | sweeps | converged | objective | cos RMSE | rel. cos RMSE | log RMSE | peak RSS (MB) | ms/sweep: D / F / G / d,s / gauge / extrap. |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for f in files {
+        let out = Command::new(std::env::current_exe().unwrap())
+            .args(["--one", f.to_str().unwrap(), "--threads", &threads.to_string()])
+            .output()
+            .expect("run child");
+        let name = f.file_stem().unwrap().to_string_lossy();
+        if out.status.success() {
+            print!("| {name} {}", String::from_utf8_lossy(&out.stdout));
+        } else {
+            println!(
+                "| {name} | failed: {} |",
+                String::from_utf8_lossy(&out.stderr).trim()
+            );
+        }
+    }
+}
+
+/// One material, in this process: returns the rest of its table row.
+fn one(path: &Path) -> Result<String, String> {
+    let t0 = Instant::now();
+    let table = MerlTable::read(path).map_err(|e| e.to_string())?;
+    let samples = table.samples(&path.display().to_string());
+    drop(table);
+    let set = FitSet::build(&samples, Layout::default(), SampleOptions::default())
+        .map_err(|e| e.to_string())?;
+    let prep = t0.elapsed().as_secs_f64();
+    let res = Executor::new(&set, FitOptions::default()).run()?;
+    let wall = t0.elapsed().as_secs_f64();
+    let m = compare_model(&samples, SampleOptions::default().max_theta_deg, &res.model);
+    // Mean milliseconds per sweep in each kind of stage (summed over lobes).
+    let mut ms = [0.0f64; 6];
+    for r in &res.history {
+        for s in &r.stages {
+            let k = match s.stage {
+                Stage::D(_) => 0,
+                Stage::F => 1,
+                Stage::G(_) | Stage::SmoothG(_) => 2,
+                Stage::DiffuseAndScales => 3,
+                Stage::Gauge => 4,
+                Stage::Extrapolate => 5,
+            };
+            ms[k] += s.seconds * 1e3;
+        }
+    }
+    let n = res.history.len().max(1) as f64;
+    let stages: Vec<String> = ms.iter().map(|v| format!("{:.0}", v / n)).collect();
+    Ok(format!(
+        "| {} | {:.2} | {:.2} | {:.2} | {} | {} | {:.4e} | {:.3e} | {:.4} | {:.3e} | {:.0} | {} |",
+        set.len(),
+        prep,
+        res.seconds,
+        wall,
+        res.history.len(),
+        if res.converged { "yes" } else { "no" },
+        res.objective,
+        m.cos_rmse,
+        m.rel_cos_rmse,
+        m.log_rmse,
+        peak_rss_mb().unwrap_or(f64::NAN),
+        stages.join(" / ")
+    ))
+}
+
+/// Peak resident set size of this process (Linux), in MiB.
+fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
