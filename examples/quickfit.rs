@@ -12,6 +12,17 @@ fn main() {
             Layout::default(),
             &[0.05, 0.2, 0.5],
         )),
+        p if p.starts_with("case:") => {
+            let case = npf::stability::cases()
+                .into_iter()
+                .find(|c| c.name.contains(&p[5..]))
+                .expect("case");
+            npf::loaders::MerlTable::from_fn(|th, td, pd| {
+                (case.truth)(&npf::loaders::geometry::Angles::from_half_diff(
+                    th, 0.0, td, pd,
+                ))
+            })
+        }
         _ => npf::loaders::MerlTable::read(path.as_ref()).unwrap(),
     };
     let samples = table.samples(&path);

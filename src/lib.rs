@@ -14,6 +14,7 @@ pub mod modelfile;
 pub mod reconstruct;
 pub mod samples;
 pub mod solver;
+pub mod stability;
 pub mod synth;
 
 pub use npf_data_loaders as loaders;

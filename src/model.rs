@@ -193,7 +193,7 @@ impl Model {
     }
 
     /// BRDF value (1/sr) per channel for a configuration; zero when either
-    /// direction is at or below the horizon.
+    /// direction is at or below the horizon, never negative.
     pub fn eval_angles(&self, a: &Angles) -> [f64; 3] {
         let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
         if ci <= 0.0 || co <= 0.0 {
@@ -215,7 +215,11 @@ impl Model {
                 v[c] += lobe.s[c] as f64 * f[c] * spec;
             }
         }
-        v
+        // Catmull-Rom G can undershoot below 0 between non-negative control
+        // points; a BRDF is never negative. Wherever the fitted (unclamped)
+        // value is >= 0 this changes nothing, elsewhere it only moves the
+        // value towards any measurement.
+        v.map(|x| x.max(0.0))
     }
 
     /// BRDF value for unit directions in the local shading frame (normal +z).

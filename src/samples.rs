@@ -314,6 +314,18 @@ struct Raw {
 }
 
 impl FitSet {
+    /// The objective of the all-black model, sum w y^2: the scale of the
+    /// data. Residual caches are updated incrementally, so their rounding
+    /// error is relative to this, not to the (much smaller) final objective.
+    pub fn data_energy(&self) -> f64 {
+        self.y
+            .iter()
+            .zip(&self.w)
+            .map(|(y, w)| w[0] * y[0] * y[0] + w[1] * y[1] * y[1] + w[2] * y[2] * y[2])
+            .sum::<f64>()
+            + self.objective_offset
+    }
+
     pub fn build(
         samples: &MeasuredSamples,
         layout: Layout,

@@ -31,7 +31,9 @@ fn demo_fit_files_load_agree_and_match_their_brdf() {
                 if a.theta_i > 85f64.to_radians() || a.theta_o > 85f64.to_radians() {
                     continue;
                 }
-                let Some(want) = DEMO_BRDF.eval_angles(&a) else { continue };
+                let Some(want) = DEMO_BRDF.eval_angles(&a) else {
+                    continue;
+                };
                 let got = json.model.eval_angles(&a);
                 let c = a.theta_i.cos();
                 for ch in 0..3 {

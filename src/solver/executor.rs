@@ -49,6 +49,8 @@ pub struct SweepReport {
     pub smoothing_reverted: usize,
     /// Whether the extrapolated point was kept.
     pub extrapolated: bool,
+    /// Lobes that were dead (all s = 0) and got a fresh D this sweep.
+    pub revived: usize,
 }
 
 pub trait Observer {
@@ -149,6 +151,7 @@ impl<'a> Executor<'a> {
         let mut beta = 1.0;
         let mut history = Vec::new();
         let mut converged = false;
+        let mut first_revival = vec![true; st.factors.lobes()];
         for sweep in 1..=opts.max_sweeps {
             let mut rec = Recorder {
                 trace: opts.trace_stages,
@@ -158,8 +161,13 @@ impl<'a> Executor<'a> {
             let mut g_passes = Vec::new();
             let mut reverted = 0;
             let lobes = st.factors.lobes();
+            let mut revived = 0;
+            let mut block_convergence = false;
             for m in 0..lobes {
-                update_d(set, &mut st, m, &mut scratch, monotone_from);
+                if update_d(set, &mut st, m, &mut scratch, monotone_from) {
+                    revived += 1;
+                    block_convergence |= std::mem::take(&mut first_revival[m]);
+                }
                 rec.mark(Stage::D(m), set, &st);
             }
             update_f(set, &mut st, &mut f_scratch);
@@ -219,13 +227,17 @@ impl<'a> Executor<'a> {
                 g_passes,
                 smoothing_reverted: reverted,
                 extrapolated,
+                revived,
             };
             for o in self.observers.iter_mut() {
                 o.observe(&report);
             }
             history.push(report);
             prev = e;
-            if rel < opts.tol {
+            // A revived lobe only pays off in the next sweep's d, s solve, so
+            // its first revival may not end the fit (later ones may: a
+            // lobe the data do not need stays dead).
+            if rel < opts.tol && !block_convergence {
                 converged = true;
                 break;
             }

@@ -89,8 +89,19 @@ pub(crate) fn update_d(
     m: usize,
     scratch: &mut Scratch,
     monotone_from: usize,
-) {
-    let s = st.factors.s[m];
+) -> bool {
+    // A lobe whose scales are all 0 contributes nothing, so D, F and G get
+    // no gradient through it and it would stay dead for good (the bilinear
+    // trap: s = 0 makes D irrelevant and vice versa). Such a lobe's D is
+    // instead fitted afresh to the residual as if s = 1, without changing
+    // the model; the next d, s solve switches it on if that helps.
+    let dead = st.factors.s[m] == [0.0; 3];
+    if dead {
+        // Start from D = 0 so the pass fits the residual itself.
+        st.factors.d[m].iter_mut().for_each(|v| *v = 0.0);
+        st.cache.par_iter_mut().for_each(|c| c.dv[m] = 0.0);
+    }
+    let s = if dead { [1.0; 3] } else { st.factors.s[m] };
     let coef = |c: &Cache, j: usize| {
         let p = c.gi[m] * c.go[m] * set.inv_cc[j];
         [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
@@ -103,11 +114,14 @@ pub(crate) fn update_d(
         if dx != 0.0 {
             let a = coef(c, j);
             c.dv[m] += dx;
-            for ch in 0..3 {
-                c.r[ch] += a[ch] * dx;
+            if !dead {
+                for ch in 0..3 {
+                    c.r[ch] += a[ch] * dx;
+                }
             }
         }
     });
+    dead
 }
 
 /// Update F_C for every channel. A_jC = sum_m s_C^m D^m G^m G^m / (cos cos).

@@ -1,0 +1,71 @@
+//! The full stability suite: every hard case x G method (cubic, golden,
+//! fixed) x lobes (1-3) x weighting, on 1/`--thin` of each table (default 4),
+//! printed as a Markdown table.
+//!
+//!     cargo run --release --example stability_report -- [--thin K] [--sweeps N] [--case SUBSTRING]
+
+use npf::samples::Weighting;
+use npf::solver::GMethod;
+use npf::stability::{cases, run, Config};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let opt = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
+    let thin: usize = opt("--thin").map_or(4, |v| v.parse().expect("--thin K"));
+    let sweeps: usize = opt("--sweeps").map_or(50, |v| v.parse().expect("--sweeps N"));
+    let filter = opt("--case");
+    println!("Stability suite: 1/{thin} of each table, at most {sweeps} sweeps, errors against the clean truth within 85 degrees.\n");
+    println!("| case | G method | lobes | weighting | sweeps | converged | monotone (max rise / data) | finite | non-negative | degenerate | rel. cos RMSE | log RMSE | seconds |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for case in cases() {
+        if filter
+            .as_ref()
+            .is_some_and(|f| !case.name.contains(f.as_str()))
+        {
+            continue;
+        }
+        let clean = case.clean();
+        let data = case.data(&clean, thin, 7);
+        for g_method in [GMethod::Cubic, GMethod::Golden, GMethod::Fixed] {
+            for lobes in 1..=3 {
+                for weighting in [
+                    Weighting::Compressive,
+                    Weighting::CosineL2,
+                    Weighting::Uniform,
+                ] {
+                    let config = Config {
+                        g_method,
+                        lobes,
+                        weighting,
+                    };
+                    let o = run(&case, &clean, &data, config, sweeps);
+                    if let Some(e) = &o.error {
+                        println!(
+                            "| {} | {g_method:?} | {lobes} | {weighting:?} | error: {e} |",
+                            o.case
+                        );
+                        continue;
+                    }
+                    println!(
+                        "| {} | {g_method:?} | {lobes} | {weighting:?} | {} | {} | {} ({:.0e}) | {} | {} | {} | {:.3e} | {:.3e} | {:.2} |",
+                        o.case,
+                        o.sweeps,
+                        if o.converged { "yes" } else { "no" },
+                        if o.monotone() { "yes" } else { "**no**" },
+                        o.max_rise_vs_data,
+                        if o.finite { "yes" } else { "**no**" },
+                        if o.non_negative { "yes" } else { "**no**" },
+                        o.degenerate.as_deref().unwrap_or("-"),
+                        o.rel_cos_rmse,
+                        o.log_rmse,
+                        o.seconds
+                    );
+                }
+            }
+        }
+    }
+}
