@@ -38,7 +38,8 @@ fn main() {
     if let Some(v) = env("TH") {
         so.max_theta_deg = v;
     }
-    let set = FitSet::build(&samples, Layout::default(), so).unwrap();
+    let n = env("N").map_or(90, |v| v as usize);
+    let set = FitSet::build(&samples, Layout::isotropic(n), so).unwrap();
     println!(
         "load {t_load:.2}s build {:.2}s stats {:?} ~{} MB",
         t.elapsed().as_secs_f64() - t_load,

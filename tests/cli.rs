@@ -268,3 +268,44 @@ fn fit_exports_both_forms_which_reload_exactly_and_reconstruct_and_evaluate() {
         String::from_utf8_lossy(&o.stdout)
     );
 }
+
+#[test]
+fn model_selection_records_its_choice_and_refuses_contradictions() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = good_table(dir.path());
+    let out = dir.path().join("sel.json");
+    // A loose target: the first candidate (1 lobe, 30 values) meets it.
+    let o = quick_fit(&input, &out, &["--target", "log-rmse=0.5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let file = modelfile::read(&out).unwrap();
+    assert_eq!(file.model.param_count(), 156);
+    assert_eq!(file.model.lobes.len(), 1);
+    let sel = file.fit.unwrap().selection.expect("selection record");
+    assert_eq!(sel["mode"], "target");
+    assert_eq!(sel["met"], true);
+    assert_eq!(sel["chosen"]["params"], 156);
+
+    let out2 = dir.path().join("budget.npfb");
+    let o = quick_fit(&input, &out2, &["--budget", "200"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(modelfile::read(&out2).unwrap().model.param_count(), 156);
+
+    let out3 = dir.path().join("x.json");
+    assert_fails(
+        &quick_fit(&input, &out3, &["--target", "log-rmse=0.1", "--lobes", "2"]),
+        "cannot be used with",
+    );
+    assert_fails(
+        &quick_fit(&input, &out3, &["--target", "psnr=40"]),
+        "unknown metric",
+    );
+    assert_fails(
+        &quick_fit(&input, &out3, &["--budget", "10"]),
+        "no candidate model has that few parameters",
+    );
+    assert_fails(
+        &quick_fit(&input, &out3, &["--nodes", "2"]),
+        "--nodes must be 4 to 90",
+    );
+    assert!(!out3.exists());
+}

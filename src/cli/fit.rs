@@ -5,6 +5,7 @@ use crate::metrics::{compare_model, Metrics};
 use crate::model::Layout;
 use crate::modelfile::{self, FitInfo, ModelFile};
 use crate::samples::{FitSet, SampleOptions, Weighting};
+use crate::selection::{self, Candidate, Target};
 use crate::solver::{Executor, FitOptions, FitResult, GMethod, SweepReport};
 use clap::Args;
 use npf_data_loaders::{MeasuredSamples, MerlTable};
@@ -16,6 +17,10 @@ pub struct FitConfig {
     /// Specular lobes (1 to 3).
     #[arg(long, default_value_t = 3)]
     pub lobes: usize,
+    /// Values per factor table (D, F, G): 90 is MERL's resolution; fewer
+    /// (e.g. 45, 30) give smaller models on the same axes.
+    #[arg(long, default_value_t = 90)]
+    pub nodes: usize,
     /// Residual weighting (see docs/fitting.md).
     #[arg(long, value_enum, default_value_t = Weighting::Compressive)]
     pub weighting: Weighting,
@@ -65,6 +70,16 @@ impl FitConfig {
         }
     }
 
+    pub fn validate(&self) -> Result<(), CliError> {
+        if !(4..=90).contains(&self.nodes) {
+            return Err(CliError::Message(format!(
+                "--nodes must be 4 to 90, got {}",
+                self.nodes
+            )));
+        }
+        self.fit_options().validate().map_err(CliError::Message)
+    }
+
     pub fn fit_options(&self) -> FitOptions {
         FitOptions {
             lobes: self.lobes,
@@ -94,6 +109,23 @@ pub struct FitArgs {
     /// No progress bar or summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Choose the smallest model (1-3 lobes, 30/45/90 values per table)
+    /// that meets METRIC=VALUE: log-rmse=X or rel-rmse=X.
+    #[arg(long, value_name = "METRIC=VALUE", conflicts_with_all = ["lobes", "nodes", "budget"])]
+    pub target: Option<Target>,
+    /// Choose the model with the lowest error (see --budget-metric) among
+    /// those with at most N parameters.
+    #[arg(long, value_name = "N", conflicts_with_all = ["lobes", "nodes"])]
+    pub budget: Option<usize>,
+    /// Metric --budget minimises.
+    #[arg(long, value_enum, default_value_t = BudgetMetric::LogRmse, requires = "budget")]
+    pub budget_metric: BudgetMetric,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
+pub enum BudgetMetric {
+    LogRmse,
+    RelRmse,
 }
 
 /// A finished fit with its provenance and errors against the input.
@@ -109,16 +141,20 @@ pub fn fit_samples(
     config: &FitConfig,
     progress: bool,
 ) -> Result<Fitted, CliError> {
+    config.validate()?;
     let opts = config.fit_options();
-    opts.validate().map_err(CliError::Message)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(config.threads)
         .build()
         .map_err(|e| CliError::Message(format!("cannot start {} threads: {e}", config.threads)))?;
     let threads = pool.current_num_threads();
     pool.install(|| {
-        let set = FitSet::build(samples, Layout::default(), config.sample_options())
-            .map_err(|e| CliError::Message(e.to_string()))?;
+        let set = FitSet::build(
+            samples,
+            Layout::isotropic(config.nodes),
+            config.sample_options(),
+        )
+        .map_err(|e| CliError::Message(e.to_string()))?;
         let bar = if progress {
             indicatif::ProgressBar::new(opts.max_sweeps as u64)
         } else {
@@ -209,12 +245,19 @@ pub fn load_table(path: &Path) -> Result<MeasuredSamples, CliError> {
 pub fn run(args: FitArgs) -> CliResult {
     modelfile::Form::of(&args.output)?;
     check_output(&args.output, args.force)?;
-    args.config
-        .fit_options()
-        .validate()
-        .map_err(CliError::Message)?;
+    args.config.validate()?;
     let samples = load_table(&args.input)?;
-    let fitted = fit_samples(&samples, &args.config, !args.quiet)?;
+    let fitted = match (args.target, args.budget) {
+        (Some(target), _) => select(&samples, &args, Selection::Target(target))?,
+        (None, Some(budget)) => {
+            let metric = match args.budget_metric {
+                BudgetMetric::LogRmse => Target::LogRmse(f64::INFINITY),
+                BudgetMetric::RelRmse => Target::RelRmse(f64::INFINITY),
+            };
+            select(&samples, &args, Selection::Budget(budget, metric))?
+        }
+        (None, None) => fit_samples(&samples, &args.config, !args.quiet)?,
+    };
     modelfile::write(
         &args.output,
         &ModelFile {
@@ -228,4 +271,77 @@ pub fn run(args: FitArgs) -> CliResult {
         eprintln!("wrote {}", args.output.display());
     }
     Ok(())
+}
+
+enum Selection {
+    Target(Target),
+    Budget(usize, Target),
+}
+
+/// Model selection: fits candidates (see `selection`), keeps the chosen
+/// fit, and records the choice and every trial in the fit record.
+fn select(samples: &MeasuredSamples, args: &FitArgs, how: Selection) -> Result<Fitted, CliError> {
+    let mut kept: Vec<Fitted> = Vec::new();
+    let mut fit = |c: Candidate| -> Result<(Metrics, f64), CliError> {
+        let mut config = args.config.clone();
+        config.lobes = c.lobes;
+        config.nodes = c.nodes;
+        let f = fit_samples(samples, &config, false)?;
+        if !args.quiet {
+            eprintln!(
+                "  {} lobes x {} values ({} parameters): log RMSE {:.4e}, relative RMSE {:.4e} ({:.1} s)",
+                c.lobes, c.nodes, c.params(), f.metrics.log_rmse, f.metrics.rel_cos_rmse, f.info.seconds
+            );
+        }
+        let out = (f.metrics, f.info.seconds);
+        kept.push(f);
+        Ok(out)
+    };
+    let (chosen, record) = match how {
+        Selection::Target(target) => {
+            if !args.quiet {
+                eprintln!(
+                    "choosing the smallest model with {} <= {}",
+                    target.name(),
+                    target.threshold()
+                );
+            }
+            let (i, met, trials) = selection::smallest_meeting(target, &mut fit)?;
+            if !met && !args.quiet {
+                eprintln!(
+                    "warning: no candidate meets {} <= {}; keeping the best ({} parameters, {:.4e})",
+                    target.name(), target.threshold(), trials[i].params, trials[i].error
+                );
+            }
+            let record = serde_json::json!({
+                "mode": "target", "target": target, "met": met,
+                "chosen": trials[i], "trials": trials,
+            });
+            (i, record)
+        }
+        Selection::Budget(budget, metric) => {
+            let Some((i, trials)) = selection::best_within(budget, metric, &mut fit)? else {
+                return Err(CliError::Message(format!(
+                    "--budget {budget}: no candidate model has that few parameters (the smallest has {})",
+                    selection::candidates()[0].params()
+                )));
+            };
+            let record = serde_json::json!({
+                "mode": "budget", "budget": budget, "metric": metric.name(),
+                "chosen": trials[i], "trials": trials,
+            });
+            (i, record)
+        }
+    };
+    let mut fitted = kept.swap_remove(chosen);
+    if !args.quiet {
+        eprintln!(
+            "chose {} lobes x {} values: {} parameters",
+            fitted.info.lobes,
+            fitted.result.model.layout.d.len(),
+            fitted.result.model.param_count()
+        );
+    }
+    fitted.info.selection = Some(record);
+    Ok(fitted)
 }
