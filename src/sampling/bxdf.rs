@@ -243,16 +243,22 @@ impl NpfBxdf {
         table
     }
 
-    /// Probability that `sample` uses component c (0 diffuse, 1 + m lobe m)
-    /// for a view with cos(theta_o) = cos_o.
+    /// Where a view with cos(theta_o) = cos_o falls in the selection table:
+    /// the row below and the weight of the row above.
     #[inline]
-    fn selection_at(&self, cos_o: f64, c: usize) -> f64 {
-        let nc = self.components();
+    fn selection_row(&self, cos_o: f64) -> (usize, f64) {
         let theta = cos_o.clamp(-1.0, 1.0).acos();
         let x = theta.to_degrees() / VIEW_MAX_DEG * (VIEW_NODES - 1) as f64;
         let x = x.clamp(0.0, (VIEW_NODES - 1) as f64);
         let k = (x.floor() as usize).min(VIEW_NODES - 2);
-        let w = x - k as f64;
+        (k, x - k as f64)
+    }
+
+    /// Probability that `sample` uses component c (0 diffuse, 1 + m lobe m)
+    /// at a view's table position (see `selection_row`).
+    #[inline]
+    fn selection_at(&self, (k, w): (usize, f64), c: usize) -> f64 {
+        let nc = self.components();
         (1.0 - w) * self.selection[k * nc + c] + w * self.selection[(k + 1) * nc + c]
     }
 
@@ -261,8 +267,9 @@ impl NpfBxdf {
         if !(wo[2] > 0.0) {
             return vec![0.0; self.components()];
         }
+        let row = self.selection_row(wo[2]);
         (0..self.components())
-            .map(|c| self.selection_at(wo[2], c))
+            .map(|c| self.selection_at(row, c))
             .collect()
     }
 
@@ -311,8 +318,9 @@ impl NpfBxdf {
         if !(wo[2] > 0.0 && wi[2] > 0.0) {
             return 0.0;
         }
+        let row = self.selection_row(wo[2]);
         let mut pdf = 0.0;
-        let p_diffuse = self.selection_at(wo[2], 0);
+        let p_diffuse = self.selection_at(row, 0);
         if p_diffuse > 0.0 {
             pdf += p_diffuse * wi[2] / PI;
         }
@@ -322,7 +330,7 @@ impl NpfBxdf {
         let wo_h = dot(wo, h);
         for (m, dist) in self.lobes.iter().enumerate() {
             if let Some(dist) = dist {
-                let p = self.selection_at(wo[2], m + 1);
+                let p = self.selection_at(row, m + 1);
                 if p > 0.0 {
                     pdf += p * lobe_pdf(dist, t, h[2], wo_h);
                 }
@@ -339,11 +347,12 @@ impl NpfBxdf {
             return BxdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
         }
         let nc = self.components();
+        let row = self.selection_row(wo[2]);
         let mut component = None;
         let mut acc = 0.0;
         let mut last = None;
         for c in 0..nc {
-            let p = self.selection_at(wo[2], c);
+            let p = self.selection_at(row, c);
             if p <= 0.0 {
                 continue;
             }
@@ -395,10 +404,11 @@ impl NpfBxdf {
         }
         let cos_o = wo[2].min(1.0);
         let sin_o = (1.0 - cos_o * cos_o).max(0.0).sqrt();
+        let row = self.selection_row(cos_o);
         let mut lost = 0.0;
         for (m, dist) in self.lobes.iter().enumerate() {
             let Some(dist) = dist else { continue };
-            let p = self.selection_at(cos_o, m + 1);
+            let p = self.selection_at(row, m + 1);
             if p <= 0.0 {
                 continue;
             }
@@ -504,19 +514,26 @@ fn cosine_hemisphere(u: [f64; 2]) -> Vec3 {
     [r * cp, r * sp, z]
 }
 
-/// Cells whose bound on the lobe's contribution is below this fraction of
-/// the lobe's total bound get no mass (see [`g_product_bound`]).
+/// Cells whose mass is below this fraction of the lobe's total get none:
+/// never drawn, and pdf is zero there (other components still cover them).
 pub const NEGLIGIBLE_CELL: f64 = 1e-6;
 
 /// The half-vector table of one lobe: cells of t = sin^2 theta_h whose
-/// edges split every interval of the D axis into SUBCELLS parts, each cell
-/// holding the mass of the interpolated D over it (4-point Gauss-Legendre).
-/// The density in t is then p_t proportional to D, that is a half-vector
-/// density proportional to D cos theta_h per solid angle. Cells where
-/// D times the bound on G(theta_i) G(theta_o) is negligible are dropped (a
-/// fitted D can be huge in a far tail where G vanishes: sampling it would
-/// waste the lobe's draws); the table stays exactly normalised, and pdf is
-/// exactly what sample draws.
+/// edges split every interval of the D axis into SUBCELLS parts. Cell i
+/// holds
+///
+///   mass_i = integral over the cell of D(theta_h) B(theta_h) dt
+///
+/// (4-point Gauss-Legendre), where B in [0, 1] is the bound of
+/// G(theta_i) G(theta_o) over the configurations with that half angle,
+/// divided by its largest value (see [`g_product_bound`]). With B = 1 the
+/// density in t is proportional to D, a half-vector density proportional to
+/// D cos theta_h per solid angle (classic D sampling). B only matters where
+/// G vanishes: a fitted D can be astronomically large in a far tail where G
+/// is ~1e-16 (its product with G G is what the model shows), and sampling
+/// D alone would spend the lobe's draws there. Cells below NEGLIGIBLE_CELL
+/// of the total are dropped. The table is exactly normalised either way, and
+/// pdf is exactly what sample draws.
 fn half_vector_distribution(model: &Model, d: &[f32], g: &[f32]) -> Option<PiecewiseConstant> {
     let axis = model.layout.d;
     let end = axis.coord(FRAC_PI_2);
@@ -534,24 +551,26 @@ fn half_vector_distribution(model: &Model, d: &[f32], g: &[f32]) -> Option<Piece
         return None;
     }
     let bound = g_product_bound(model, g);
+    let b_max = bound(0.0);
+    if !(b_max > 0.0 && b_max.is_finite()) {
+        return None;
+    }
     let mut mass = Vec::with_capacity(edges.len() - 1);
-    let mut weighted = Vec::with_capacity(edges.len() - 1);
     for w in edges.windows(2) {
         let (a, b) = (w[0], w[1]);
         let mut m = 0.0;
         for (x, wt) in GL4_X.iter().zip(GL4_W) {
             let t = 0.5 * (a + b) + 0.5 * (b - a) * x;
             let theta = t.sqrt().min(1.0).asin();
-            m += 0.5 * (b - a) * wt * axis.stencil(theta).apply_f32(d).max(0.0);
+            let weight = (bound(theta) / b_max).min(1.0);
+            m += 0.5 * (b - a) * wt * axis.stencil(theta).apply_f32(d).max(0.0) * weight;
         }
-        let (lo, hi) = (a.sqrt().min(1.0).asin(), b.sqrt().min(1.0).asin());
         mass.push(m);
-        weighted.push(m * bound(lo).max(bound(hi)));
     }
-    let total: f64 = weighted.iter().sum();
+    let total: f64 = mass.iter().sum();
     if total.is_finite() && total > 0.0 {
-        for (m, w) in mass.iter_mut().zip(&weighted) {
-            if *w < NEGLIGIBLE_CELL * total {
+        for m in mass.iter_mut() {
+            if *m < NEGLIGIBLE_CELL * total {
                 *m = 0.0;
             }
         }
@@ -559,37 +578,28 @@ fn half_vector_distribution(model: &Model, d: &[f32], g: &[f32]) -> Option<Piece
     PiecewiseConstant::new(edges, &mass)
 }
 
-/// An upper bound (on a 1/4-degree grid, dilated by one step) of
-/// |G(theta_i) G(theta_o)| over the configurations with half angle theta_h:
-/// the half vector is the geodesic midpoint of wi and wo, so
-/// theta_i + theta_o >= 2 theta_h, each at most pi/2.
+/// The largest |G(theta_i) G(theta_o)| over the configurations with half
+/// angle theta_h, on a 1/8-degree grid: the half vector is the geodesic
+/// midpoint of wi and wo, so theta_i + theta_o >= 2 theta_h, each at most
+/// pi/2. (On the grid, not a strict bound between grid points; it only
+/// weights the table, so the sampler stays exact whatever its accuracy.)
 fn g_product_bound(model: &Model, g: &[f32]) -> impl Fn(f64) -> f64 {
-    const STEPS: usize = 360;
+    const STEPS: usize = 720;
     let step = FRAC_PI_2 / STEPS as f64;
-    let raw: Vec<f64> = (0..=STEPS)
+    let gv: Vec<f64> = (0..=STEPS)
         .map(|k| model.layout.g.stencil(k as f64 * step).apply_f32(g).abs())
         .collect();
-    // Dilate: the largest value among neighbours stands for the whole step.
-    let gmax: Vec<f64> = (0..=STEPS)
-        .map(|k| {
-            raw[k.saturating_sub(1)..=(k + 1).min(STEPS)]
-                .iter()
-                .cloned()
-                .fold(0.0, f64::max)
-        })
-        .collect();
-    // suffix[k] = max of gmax over [k, STEPS].
-    let mut suffix = gmax.clone();
+    // suffix[k] = max of gv over [k, STEPS].
+    let mut suffix = gv.clone();
     for k in (0..STEPS).rev() {
         suffix[k] = suffix[k].max(suffix[k + 1]);
     }
-    // bound[j] for theta_h = j * step / 2 ... use j over 2 theta_h on the grid.
+    // table[s]: the bound when theta_i + theta_o >= s steps.
     let table: Vec<f64> = (0..=2 * STEPS)
         .map(|s| {
-            // s = steps of theta_i + theta_o lower limit.
             let lo = s.saturating_sub(STEPS);
             (lo..=STEPS)
-                .map(|a| gmax[a] * suffix[s.saturating_sub(a).min(STEPS)])
+                .map(|a| gv[a] * suffix[s.saturating_sub(a).min(STEPS)])
                 .fold(0.0, f64::max)
         })
         .collect();
