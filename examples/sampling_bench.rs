@@ -478,6 +478,14 @@ fn real_main() -> Result<(), String> {
     Ok(())
 }
 
+fn ratio(r: f64) -> String {
+    if r < 100.0 {
+        format!("{r:.1}")
+    } else {
+        format!("{r:.0}")
+    }
+}
+
 fn report(results: &[MaterialResult], speeds: &[Throughput], args: &[String]) -> String {
     use std::fmt::Write;
     let mut s = String::new();
@@ -519,10 +527,10 @@ fn report(results: &[MaterialResult], speeds: &[Throughput], args: &[String]) ->
         let met = r.ours[i128] <= r.cosine[i4096];
         let _ = writeln!(
             s,
-            "| {} | {:.0} | {:.0} | {:.0} | {:.3e} | {:.3e} | {} | {:.1e} | {} |",
+            "| {} | {} | {} | {:.0} | {:.3e} | {:.3e} | {} | {:.1e} | {} |",
             r.name,
-            r.ratio,
-            r.furnace_ratio,
+            ratio(r.ratio),
+            ratio(r.furnace_ratio),
             128.0 * r.ratio,
             r.ours[i128],
             r.cosine[i4096],

@@ -52,18 +52,7 @@ fn spherical(theta: f64, phi: f64) -> Vec3 {
     ]
 }
 
-const GL_X: [f64; 4] = [
-    -0.861_136_311_594_052_6,
-    -0.339_981_043_584_856_3,
-    0.339_981_043_584_856_3,
-    0.861_136_311_594_052_6,
-];
-const GL_W: [f64; 4] = [
-    0.347_854_845_137_453_9,
-    0.652_145_154_862_546_1,
-    0.652_145_154_862_546_1,
-    0.347_854_845_137_453_9,
-];
+use npf::sampling::{GL4_W as GL_W, GL4_X as GL_X};
 
 /// Panel edges on [lo, hi]: a uniform grid plus geometric refinement
 /// (from 1e-6 outwards) around each focus point.

@@ -32,16 +32,19 @@ fn writes_one_line_per_sample_whose_mean_weight_is_the_albedo() {
     let dir = tempfile::tempdir().unwrap();
     let model = model_file(dir.path());
     let m = model.to_str().unwrap();
-    let o = npf(&[
-        "sample",
-        m,
-        "--theta-o",
-        "30",
-        "--n",
-        "20000",
-        "--seed",
-        "5",
-    ]);
+    let run = |seed: &str| {
+        npf(&[
+            "sample",
+            m,
+            "--theta-o",
+            "30",
+            "--n",
+            "20000",
+            "--seed",
+            seed,
+        ])
+    };
+    let o = run("5");
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8(o.stdout.clone()).unwrap();
     let mut lines = text.lines();
@@ -86,27 +89,9 @@ fn writes_one_line_per_sample_whose_mean_weight_is_the_albedo() {
         );
     }
     // Same seed, same output; another seed, another output.
-    let again = npf(&[
-        "sample",
-        m,
-        "--theta-o",
-        "30",
-        "--n",
-        "20000",
-        "--seed",
-        "5",
-    ]);
+    let again = run("5");
     assert_eq!(again.stdout, o.stdout);
-    let other = npf(&[
-        "sample",
-        m,
-        "--theta-o",
-        "30",
-        "--n",
-        "20000",
-        "--seed",
-        "6",
-    ]);
+    let other = run("6");
     assert_ne!(other.stdout, o.stdout);
 }
 

@@ -23,13 +23,15 @@ const ALBEDO_GRID: usize = 32;
 /// Rec. 709 luminance, which weighs the three channels into one selection.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
-const GL4_X: [f64; 4] = [
+/// 4-point Gauss-Legendre nodes on [-1, 1] (the tests' quadratures use them too).
+pub const GL4_X: [f64; 4] = [
     -0.861_136_311_594_052_6,
     -0.339_981_043_584_856_3,
     0.339_981_043_584_856_3,
     0.861_136_311_594_052_6,
 ];
-const GL4_W: [f64; 4] = [
+/// 4-point Gauss-Legendre weights.
+pub const GL4_W: [f64; 4] = [
     0.347_854_845_137_453_9,
     0.652_145_154_862_546_1,
     0.652_145_154_862_546_1,

@@ -10,5 +10,7 @@
 mod bxdf;
 mod dist;
 
-pub use bxdf::{BxdfSample, Component, NpfBxdf, SELECTION_FLOOR, SUBCELLS, VIEW_NODES};
+pub use bxdf::{
+    BxdfSample, Component, NpfBxdf, GL4_W, GL4_X, SELECTION_FLOOR, SUBCELLS, VIEW_NODES,
+};
 pub use dist::PiecewiseConstant;
