@@ -131,6 +131,25 @@ fn output_file_is_written_once_and_not_overwritten() {
     ]);
     assert!(forced.status.success(), "{}", stderr(&forced));
     assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 51);
+    // The histogram picture: a PNG, also never overwritten without --force.
+    let png = dir.path().join("h.png");
+    let p = png.to_str().unwrap();
+    let h = npf(&[
+        "sample",
+        m,
+        "--theta-o",
+        "40",
+        "--n",
+        "5000",
+        "--histogram",
+        p,
+    ]);
+    assert!(h.status.success(), "{}", stderr(&h));
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let again = npf(&["sample", m, "--theta-o", "40", "--n", "5", "--histogram", p]);
+    assert!(!again.status.success());
+    assert_eq!(std::fs::read(&png).unwrap(), bytes);
     let missing_dir = dir.path().join("nope").join("s.csv");
     let bad = npf(&[
         "sample",
