@@ -407,6 +407,10 @@ impl NpfBxdf {
         let cos_o = wo[2].min(1.0);
         let sin_o = (1.0 - cos_o * cos_o).max(0.0).sqrt();
         let row = self.selection_row(cos_o);
+        if (0..self.components()).all(|c| self.selection_at(row, c) <= 0.0) {
+            // Nothing to draw from (no diffuse term, no lobe with mass).
+            return 1.0;
+        }
         let mut lost = 0.0;
         for (m, dist) in self.lobes.iter().enumerate() {
             let Some(dist) = dist else { continue };
@@ -664,6 +668,19 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_black_model_loses_every_draw() {
+        let mut m = known_factor_model(Layout::default(), &[0.1]);
+        m.diffuse = [0.0; 3];
+        m.lobes[0].s = [0.0; 3];
+        let b = NpfBxdf::new(m).unwrap();
+        let wo = [0.0, 0.0, 1.0];
+        assert!(b.sample(wo, 0.3, [0.3, 0.3]).is_lost());
+        assert_eq!(b.pdf(wo, [0.0, 0.6, 0.8]), 0.0);
+        assert_eq!(b.lost_mass(wo), 1.0);
+        assert_eq!(b.table_bytes(), 8 * VIEW_NODES * 2);
     }
 
     #[test]
