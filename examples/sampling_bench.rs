@@ -60,7 +60,7 @@ fn cross(a: Vec3, b: Vec3) -> Vec3 {
 }
 
 /// The environment (world frame, y up): a sky gradient, a darker ground,
-/// and three disk lights (angular radius 0.15-0.3 rad, 10-40x the sky)
+/// and three disk lights (angular radius 0.15-0.3 rad, 10-100x the sky)
 /// with soft edges.
 fn environment(w: Vec3) -> [f64; 3] {
     let mut l = if w[1] > 0.0 {
