@@ -13,6 +13,7 @@ pub mod model;
 pub mod modelfile;
 pub mod reconstruct;
 pub mod samples;
+pub mod sampling;
 pub mod selection;
 pub mod solver;
 pub mod stability;

@@ -27,6 +27,8 @@ enum Command {
     Eval(cli::eval::EvalArgs),
     /// The main job on self-made data: tabulate an analytic BRDF, fit it, export, reconstruct.
     Demo(cli::demo::DemoArgs),
+    /// Draw directions from a model's importance sampler (CSV of wi, pdf, weight).
+    Sample(cli::sample::SampleArgs),
     /// Energy-compensation tables, furnace checks and the microsurface simulator.
     #[command(subcommand)]
     Energy(cli::energy::EnergyCommand),
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
         Command::Reconstruct(a) => cli::reconstruct::run(a),
         Command::Eval(a) => cli::eval::run(a),
         Command::Demo(a) => cli::demo::run(a),
+        Command::Sample(a) => cli::sample::run(a),
         Command::Energy(cmd) => cli::energy::run(cmd),
     };
     match result {

@@ -7,6 +7,7 @@ pub mod eval;
 pub mod fit;
 pub mod info;
 pub mod reconstruct;
+pub mod sample;
 
 use std::path::Path;
 

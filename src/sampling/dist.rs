@@ -1,0 +1,153 @@
+//! A piecewise-constant 1-D distribution on cells with arbitrary edges
+//! (pbrt's `Distribution1D`, generalised to non-uniform cells).
+
+/// Density constant on each cell `[edges[i], edges[i+1])`; the probability
+/// of cell i is `cdf[i+1] - cdf[i]`, and `cdf` ends at exactly 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PiecewiseConstant {
+    edges: Vec<f64>,
+    cdf: Vec<f64>,
+    density: Vec<f64>,
+}
+
+impl PiecewiseConstant {
+    /// `mass[i]` is the (unnormalised, non-negative) mass of cell i; `edges`
+    /// has one more entry than `mass` and increases strictly. `None` when
+    /// the total mass is zero or not finite, or the inputs are inconsistent.
+    pub fn new(edges: Vec<f64>, mass: &[f64]) -> Option<Self> {
+        if edges.len() != mass.len() + 1 || mass.is_empty() {
+            return None;
+        }
+        if edges
+            .windows(2)
+            .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+        {
+            return None;
+        }
+        if mass.iter().any(|m| !(m.is_finite() && *m >= 0.0)) {
+            return None;
+        }
+        let total: f64 = mass.iter().sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        let mut cdf = Vec::with_capacity(edges.len());
+        let mut acc = 0.0;
+        cdf.push(0.0);
+        for m in mass {
+            acc += m;
+            cdf.push(acc / total);
+        }
+        // Make the last entry exactly 1 (and keep the sequence monotone).
+        let n = mass.len();
+        cdf[n] = 1.0;
+        for i in (1..n).rev() {
+            if cdf[i] > cdf[i + 1] {
+                cdf[i] = cdf[i + 1];
+            }
+        }
+        // Densities from the stored cdf itself, so sample and pdf agree exactly.
+        let density = (0..n)
+            .map(|i| (cdf[i + 1] - cdf[i]) / (edges[i + 1] - edges[i]))
+            .collect();
+        Some(PiecewiseConstant {
+            edges,
+            cdf,
+            density,
+        })
+    }
+
+    pub fn cells(&self) -> usize {
+        self.density.len()
+    }
+
+    pub fn edges(&self) -> &[f64] {
+        &self.edges
+    }
+
+    pub fn cdf(&self) -> &[f64] {
+        &self.cdf
+    }
+
+    /// Probability of cell i.
+    pub fn cell_probability(&self, i: usize) -> f64 {
+        self.cdf[i + 1] - self.cdf[i]
+    }
+
+    /// Bytes of table storage (edges, cdf, densities as f64).
+    pub fn table_bytes(&self) -> usize {
+        8 * (self.edges.len() + self.cdf.len() + self.density.len())
+    }
+
+    /// x in `[edges[0], edges[n])` distributed with this density, for u in [0, 1).
+    /// Cells of zero probability are never chosen.
+    #[inline]
+    pub fn sample(&self, u: f64) -> f64 {
+        let n = self.cells();
+        let u = if u.is_finite() {
+            u.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        // Last i with cdf[i] <= u among cells of positive probability.
+        let mut i = self
+            .cdf
+            .partition_point(|&c| c <= u)
+            .saturating_sub(1)
+            .min(n - 1);
+        // Skip zero-probability cells (u at a plateau of the cdf, or u = 1).
+        while self.cdf[i + 1] <= self.cdf[i] && i > 0 {
+            i -= 1;
+        }
+        let p = self.cdf[i + 1] - self.cdf[i];
+        let du = if p > 0.0 {
+            ((u - self.cdf[i]) / p).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let (a, b) = (self.edges[i], self.edges[i + 1]);
+        // Stay inside the half-open cell so pdf finds the same cell.
+        let x = a + du * (b - a);
+        if x >= b {
+            a + (b - a) * (1.0 - f64::EPSILON)
+        } else {
+            x
+        }
+    }
+
+    /// Density at x (zero outside the support).
+    #[inline]
+    pub fn pdf(&self, x: f64) -> f64 {
+        let n = self.cells();
+        if !(x >= self.edges[0] && x < self.edges[n]) {
+            return 0.0;
+        }
+        let i = self.edges.partition_point(|&e| e <= x) - 1;
+        self.density[i.min(n - 1)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_stay_in_their_cells_and_pdf_matches() {
+        let d =
+            PiecewiseConstant::new(vec![0.0, 0.1, 0.5, 0.6, 1.0], &[1.0, 0.0, 2.0, 1.0]).unwrap();
+        assert_eq!(d.cdf()[4], 1.0);
+        for k in 0..1000 {
+            let u = k as f64 / 1000.0;
+            let x = d.sample(u);
+            assert!((0.0..1.0).contains(&x));
+            assert!(!(0.1..0.5).contains(&x), "zero cell sampled at u={u}: {x}");
+            assert!(d.pdf(x) > 0.0);
+        }
+        let total: f64 = (0..4).map(|i| d.cell_probability(i)).sum();
+        assert!((total - 1.0).abs() < 1e-15);
+        assert!(d.sample(1.0) < 1.0 && d.pdf(d.sample(1.0)) > 0.0);
+        assert_eq!(d.pdf(1.0), 0.0);
+        assert!(PiecewiseConstant::new(vec![0.0, 1.0], &[0.0]).is_none());
+        assert!(PiecewiseConstant::new(vec![0.0, 1.0], &[f64::NAN]).is_none());
+    }
+}

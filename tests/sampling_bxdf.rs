@@ -1,0 +1,609 @@
+//! The importance sampler against its own pdf, on synthetic models only:
+//! normalisation (with the mass lost below the horizon), chi-square
+//! goodness of fit of `sample` against `pdf` (as Mitsuba's and pbrt's
+//! sampler tests), and the Monte Carlo weight `sample` returns.
+
+use npf::model::{Layout, Model};
+use npf::sampling::{Component, NpfBxdf};
+use npf::synth::known_factor_model;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use std::f64::consts::PI;
+
+type Vec3 = [f64; 3];
+
+fn specular() -> Model {
+    known_factor_model(Layout::default(), &[0.02])
+}
+
+fn glossy() -> Model {
+    known_factor_model(Layout::default(), &[0.2])
+}
+
+fn three_lobes() -> Model {
+    known_factor_model(Layout::default(), &[0.02, 0.15, 0.5])
+}
+
+fn diffuse_only() -> Model {
+    let mut m = known_factor_model(Layout::default(), &[0.2]);
+    m.lobes[0].s = [0.0; 3];
+    m
+}
+
+fn models() -> Vec<(&'static str, NpfBxdf)> {
+    vec![
+        ("specular", NpfBxdf::new(specular()).unwrap()),
+        ("glossy", NpfBxdf::new(glossy()).unwrap()),
+        ("three-lobes", NpfBxdf::new(three_lobes()).unwrap()),
+        ("diffuse", NpfBxdf::new(diffuse_only()).unwrap()),
+    ]
+}
+
+fn wo_at(theta_deg: f64) -> Vec3 {
+    let t = theta_deg.to_radians();
+    [t.sin(), 0.0, t.cos()]
+}
+
+fn spherical(theta: f64, phi: f64) -> Vec3 {
+    [
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    ]
+}
+
+use npf::sampling::{GL4_W as GL_W, GL4_X as GL_X};
+
+/// Panel edges on [lo, hi]: a uniform grid plus geometric refinement
+/// (from 1e-6 outwards) around each focus point.
+fn panel_edges(lo: f64, hi: f64, uniform: usize, focus: &[f64]) -> Vec<f64> {
+    let h = (hi - lo) / uniform as f64;
+    let mut e: Vec<f64> = (0..=uniform).map(|k| lo + h * k as f64).collect();
+    for &x0 in focus {
+        let mut w = 1e-6;
+        while w < h {
+            for x in [x0 - w, x0 + w] {
+                if x > lo && x < hi {
+                    e.push(x);
+                }
+            }
+            w *= 1.25;
+        }
+    }
+    e.sort_by(f64::total_cmp);
+    e.dedup_by(|b, a| (*b - *a).abs() < 1e-12);
+    e
+}
+
+/// Integral of f(wi) over theta in [t0, t1], phi in [p0, p1] (composite
+/// Gauss-Legendre on the given panel edges).
+fn integrate(f: &impl Fn(Vec3) -> f64, thetas: &[f64], phis: &[f64]) -> f64 {
+    let mut sum = 0.0;
+    for tw in thetas.windows(2) {
+        for pw in phis.windows(2) {
+            for (xt, wt) in GL_X.iter().zip(GL_W) {
+                let t = 0.5 * (tw[0] + tw[1]) + 0.5 * (tw[1] - tw[0]) * xt;
+                let jt = 0.5 * (tw[1] - tw[0]) * wt * t.sin();
+                for (xp, wp) in GL_X.iter().zip(GL_W) {
+                    let p = 0.5 * (pw[0] + pw[1]) + 0.5 * (pw[1] - pw[0]) * xp;
+                    sum += jt * 0.5 * (pw[1] - pw[0]) * wp * f(spherical(t, p));
+                }
+            }
+        }
+    }
+    sum
+}
+
+/// Directions as functions of the half vector of (wi, wo): wo has azimuth
+/// 0, h = (theta_h, phi_h) with phi_h in (-pi, pi], wi = 2 (wo.h) h - wo. For
+/// wi above the horizon this is a bijection, so a partition of (theta_h,
+/// phi_h) is a partition of the hemisphere of wi; the pdf's own cells are
+/// circles of constant theta_h there, so quadrature panels can follow them.
+fn wi_of(wo: Vec3, theta_h: f64, phi_h: f64) -> Vec3 {
+    let h = spherical(theta_h, phi_h);
+    let k = 2.0 * (wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]);
+    [k * h[0] - wo[0], k * h[1] - wo[1], k * h[2] - wo[2]]
+}
+
+/// Solid angle of wi per d theta_h d phi_h, by central differences of the
+/// map (independent of the Jacobian the sampler uses).
+fn jacobian(wo: Vec3, theta_h: f64, phi_h: f64) -> f64 {
+    let d = 1e-6;
+    let a = wi_of(wo, theta_h + d, phi_h);
+    let b = wi_of(wo, theta_h - d, phi_h);
+    let c = wi_of(wo, theta_h, phi_h + d);
+    let e = wi_of(wo, theta_h, phi_h - d);
+    let u = [
+        (a[0] - b[0]) / (2.0 * d),
+        (a[1] - b[1]) / (2.0 * d),
+        (a[2] - b[2]) / (2.0 * d),
+    ];
+    let v = [
+        (c[0] - e[0]) / (2.0 * d),
+        (c[1] - e[1]) / (2.0 * d),
+        (c[2] - e[2]) / (2.0 * d),
+    ];
+    let x = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+}
+
+/// Half-width of the arc of phi_h (around wo's azimuth) whose wi is above
+/// the horizon: wi_z = 2 (wo.h) cos theta_h - cos theta_o > 0.
+fn visible_half_arc(wo: Vec3, theta_h: f64) -> f64 {
+    let (co, so) = (wo[2], (wo[0] * wo[0] + wo[1] * wo[1]).sqrt());
+    let (sh, ch) = theta_h.sin_cos();
+    // 2 (so sh cos phi + co ch) ch > co  <=>  cos phi > c.
+    let rhs = co / (2.0 * ch) - co * ch;
+    let k = so * sh;
+    if k <= 0.0 {
+        return if rhs < 0.0 { PI } else { 0.0 };
+    }
+    let c = rhs / k;
+    if c >= 1.0 {
+        0.0
+    } else if c <= -1.0 {
+        PI
+    } else {
+        c.acos()
+    }
+}
+
+/// Cell edges in theta_h: the sampler's own table edges (where its pdf
+/// jumps), or a uniform grid for a model without lobes.
+fn theta_h_edges(b: &NpfBxdf) -> Vec<f64> {
+    match (0..b.model().lobes.len()).find_map(|m| b.lobe_distribution(m)) {
+        Some(d) => d.edges().iter().map(|t| t.sqrt().min(1.0).asin()).collect(),
+        None => (0..=180).map(|k| k as f64 / 180.0 * PI / 2.0).collect(),
+    }
+}
+
+/// Integral of pdf(wo, wi) over the wi above the horizon whose half vector
+/// lies in theta_h in [edges[0], edges[last]] (one panel per edge interval),
+/// phi_h in [p0, p1] (wo at azimuth 0).
+fn integrate_pdf_h(b: &NpfBxdf, wo: Vec3, edges: &[f64], p0: f64, p1: f64) -> f64 {
+    let rot = wo[1].atan2(wo[0]);
+    let wo0 = [(wo[0] * wo[0] + wo[1] * wo[1]).sqrt(), 0.0, wo[2]];
+    let mut sum = 0.0;
+    for w in edges.windows(2) {
+        for (xt, wt) in GL_X.iter().zip(GL_W) {
+            let th = 0.5 * (w[0] + w[1]) + 0.5 * (w[1] - w[0]) * xt;
+            let arc = visible_half_arc(wo0, th);
+            let (lo, hi) = (p0.max(-arc), p1.min(arc));
+            if hi <= lo {
+                continue;
+            }
+            let panels = 3;
+            let ph_w = (hi - lo) / panels as f64;
+            let mut inner = 0.0;
+            for k in 0..panels {
+                let (a, c) = (lo + k as f64 * ph_w, lo + (k + 1) as f64 * ph_w);
+                for (xp, wp) in GL_X.iter().zip(GL_W) {
+                    let ph = 0.5 * (a + c) + 0.5 * (c - a) * xp;
+                    let wi = wi_of(wo0, th, ph);
+                    // Rotate back to wo's azimuth (the model is isotropic,
+                    // but the sampler is asked about the real wo).
+                    let (s, cr) = rot.sin_cos();
+                    let wi = [cr * wi[0] - s * wi[1], s * wi[0] + cr * wi[1], wi[2]];
+                    inner += 0.5 * (c - a) * wp * b.pdf(wo, wi) * jacobian(wo0, th, ph);
+                }
+            }
+            sum += 0.5 * (w[1] - w[0]) * wt * inner;
+        }
+    }
+    sum
+}
+
+#[test]
+fn pdf_integrates_to_one_minus_the_mass_lost_below_the_horizon() {
+    let mut rng = Pcg64::seed_from_u64(7);
+    for (name, b) in models() {
+        let edges = theta_h_edges(&b);
+        for theta_o in [0.0f64, 30.0, 60.0, 80.0, 89.0] {
+            // An azimuth other than 0, to exercise the isotropy.
+            let t = theta_o.to_radians();
+            let wo = spherical(t, 0.7);
+            let up = integrate_pdf_h(&b, wo, &edges, -PI, PI);
+            let lost = b.lost_mass(wo);
+            assert!(
+                (up + lost - 1.0).abs() < 1e-3,
+                "{name} at {theta_o} deg: integral {up:.6} + lost {lost:.6} = {:.6}",
+                up + lost
+            );
+            // The reported loss is what sample does.
+            let n = 200_000;
+            let drawn_lost = (0..n)
+                .filter(|_| b.sample(wo, rng.gen(), [rng.gen(), rng.gen()]).is_lost())
+                .count() as f64
+                / n as f64;
+            let sigma = (lost * (1.0 - lost) / n as f64).sqrt();
+            assert!(
+                (drawn_lost - lost).abs() < 5.0 * sigma + 2e-4,
+                "{name} at {theta_o} deg: drew {drawn_lost:.5} below the horizon, tables say {lost:.5}"
+            );
+            eprintln!(
+                "{name:12} theta_o {theta_o:4}: pdf integral {up:.7}, lost {lost:.7}, sum {:.7}, drawn lost {drawn_lost:.6}",
+                up + lost
+            );
+        }
+    }
+}
+
+#[test]
+fn pdf_integrates_to_one_on_a_plain_direction_grid() {
+    // Independent of the half-vector map, for the smoother models: composite
+    // Gauss-Legendre over (theta_i, phi_i), refined around the mirror direction.
+    for (name, b) in models()
+        .into_iter()
+        .filter(|(n, _)| *n == "glossy" || *n == "diffuse")
+    {
+        for theta_o in [0.0f64, 50.0, 85.0] {
+            let wo = wo_at(theta_o);
+            let to = theta_o.to_radians();
+            let thetas = panel_edges(0.0, PI / 2.0, 96, &[to, 0.0]);
+            let phis = panel_edges(0.0, 2.0 * PI, 96, &[PI]);
+            let up = integrate(&|wi| b.pdf(wo, wi), &thetas, &phis);
+            let lost = b.lost_mass(wo);
+            assert!(
+                (up + lost - 1.0).abs() < 1e-3,
+                "{name} at {theta_o}: {up} + {lost}"
+            );
+        }
+    }
+}
+
+#[test]
+fn sample_returns_the_pdf_and_the_weight_of_what_it_draws() {
+    let mut rng = Pcg64::seed_from_u64(3);
+    for (name, b) in models() {
+        let mut seen_lobe = false;
+        for k in 0..20_000 {
+            let theta = rng.gen::<f64>() * 0.5 * PI * 0.999;
+            let wo = spherical(theta, rng.gen::<f64>() * 2.0 * PI);
+            let s = b.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
+            let norm = (s.wi[0].powi(2) + s.wi[1].powi(2) + s.wi[2].powi(2)).sqrt();
+            assert!((norm - 1.0).abs() < 1e-9, "{name}: |wi| = {norm}");
+            if s.is_lost() {
+                assert!(
+                    s.wi[2] <= 0.0 || b.pdf(wo, s.wi) == 0.0,
+                    "{name}: lost draw above the horizon"
+                );
+                assert_eq!(s.weight, [0.0; 3]);
+                assert_eq!(s.f, [0.0; 3]);
+                continue;
+            }
+            if matches!(s.component, Component::Lobe(_)) {
+                seen_lobe = true;
+            }
+            let pdf = b.pdf(wo, s.wi);
+            assert!(
+                pdf > 0.0 && (s.pdf - pdf).abs() <= 1e-12 * pdf,
+                "{name} #{k}: {} vs {pdf}",
+                s.pdf
+            );
+            let f = b.eval(wo, s.wi);
+            let m = b.model().eval(s.wi, wo);
+            for c in 0..3 {
+                let expect = f[c] * s.wi[2] / pdf;
+                assert!(
+                    (s.weight[c] - expect).abs() <= 1e-12 * expect.abs() + 1e-300,
+                    "{name}: weight"
+                );
+                assert!(
+                    (f[c] - m[c]).abs() <= 1e-6 * m[c].abs() + 1e-12,
+                    "{name}: eval {f:?} vs model {m:?}"
+                );
+            }
+        }
+        assert_eq!(seen_lobe, name != "diffuse", "{name}: lobe draws");
+        // Below the horizon: zero value, zero pdf, lost draws.
+        let wo = wo_at(30.0);
+        assert_eq!(b.pdf(wo, [0.0, 0.6, -0.8]), 0.0);
+        assert_eq!(b.eval(wo, [0.0, 0.6, -0.8]), [0.0; 3]);
+        assert_eq!(b.pdf([0.0, 0.6, -0.8], wo), 0.0);
+        assert!(b.sample([0.0, 0.6, -0.8], 0.5, [0.5, 0.5]).is_lost());
+        assert!(b.sample([1.0, 0.0, 0.0], 0.5, [0.5, 0.5]).is_lost());
+        // Odd random numbers never panic.
+        for u in [0.0, 1.0, f64::NAN, -1.0, 2.0] {
+            let _ = b.sample(wo, u, [u, u]);
+        }
+        let p: f64 = b.selection_probabilities(wo).iter().sum();
+        assert!((p - 1.0).abs() < 1e-12, "{name}: selection sums to {p}");
+    }
+}
+
+#[test]
+fn mean_weight_is_the_directional_albedo() {
+    // Against a deterministic quadrature of f cos over the hemisphere.
+    let b = NpfBxdf::new(glossy()).unwrap();
+    let wo = wo_at(40.0);
+    let thetas = panel_edges(0.0, PI / 2.0, 96, &[40f64.to_radians()]);
+    let phis = panel_edges(0.0, 2.0 * PI, 96, &[PI]);
+    let mut rng = Pcg64::seed_from_u64(11);
+    let n = 400_000;
+    for c in 0..3 {
+        let albedo = integrate(&|wi| b.eval(wo, wi)[c] * wi[2], &thetas, &phis);
+        let mut rng_c = Pcg64::seed_from_u64(11 + c as u64);
+        let (mut s1, mut s2) = (0.0, 0.0);
+        for _ in 0..n {
+            let w = b.sample(wo, rng_c.gen(), [rng_c.gen(), rng_c.gen()]).weight[c];
+            s1 += w;
+            s2 += w * w;
+        }
+        let mean = s1 / n as f64;
+        let se = ((s2 / n as f64 - mean * mean) / n as f64).sqrt();
+        assert!(
+            (mean - albedo).abs() < 5.0 * se + 1e-4,
+            "channel {c}: {mean} +- {se} vs {albedo}"
+        );
+    }
+    let _ = rng.gen::<f64>();
+}
+
+// ---------------------------------------------------------------- chi-square
+
+/// ln Gamma (Lanczos, g = 7).
+fn ln_gamma(x: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + 7.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// Regularised upper incomplete gamma Q(a, x) (Numerical Recipes' gammq).
+fn gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let gln = ln_gamma(a);
+    if x < a + 1.0 {
+        let (mut ap, mut sum) = (a, 1.0 / a);
+        let mut del = sum;
+        for _ in 0..10_000 {
+            ap += 1.0;
+            del *= x / ap;
+            sum += del;
+            if del.abs() < sum.abs() * 1e-15 {
+                break;
+            }
+        }
+        1.0 - sum * (-x + a * x.ln() - gln).exp()
+    } else {
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / 1e-300;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < 1e-300 {
+                d = 1e-300;
+            }
+            c = b + an / c;
+            if c.abs() < 1e-300 {
+                c = 1e-300;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        (-x + a * x.ln() - gln).exp() * h
+    }
+}
+
+/// Chi-square goodness of fit of `sample` against `pdf` for one view.
+/// The grid covers the sphere of wi through the half vector of (wi, wo)
+/// (see [`wi_of`]) and adapts to the distribution: theta_h bands at
+/// quantiles of a pilot sample, snapped to the sampler's table edges (so
+/// the pdf is smooth inside each cell and the quadrature is accurate), and
+/// PHI_CELLS uniform cells in phi_h; one extra cell holds the draws lost
+/// below the horizon (expected: `lost_mass`). Expected counts integrate
+/// `pdf` with a numerical Jacobian; cells expecting fewer than 5 are pooled
+/// (as Mitsuba's and pbrt's tests). Returns the p-value.
+fn chi2_p_value(b: &NpfBxdf, wo: Vec3, n: usize, seed: u64) -> f64 {
+    const BANDS: usize = 24;
+    const PHI_CELLS: usize = 24;
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let draw = |rng: &mut Pcg64| b.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
+    let rot = wo[1].atan2(wo[0]);
+    // (theta_h, phi_h relative to wo's azimuth) of a drawn wi.
+    let half_angles = |wi: Vec3| {
+        let s = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
+        let n = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+        let th = (s[0] * s[0] + s[1] * s[1]).sqrt().atan2(s[2]);
+        let _ = n;
+        let mut ph = s[1].atan2(s[0]) - rot;
+        if ph > PI {
+            ph -= 2.0 * PI;
+        }
+        if ph <= -PI {
+            ph += 2.0 * PI;
+        }
+        (th, ph)
+    };
+    let table = theta_h_edges(b);
+    let mut pilot: Vec<f64> = (0..50_000)
+        .map(|_| draw(&mut rng))
+        .filter(|s| !s.is_lost())
+        .map(|s| half_angles(s.wi).0)
+        .collect();
+    pilot.sort_by(f64::total_cmp);
+    // Band edges: indices into the table edges.
+    let mut bands = vec![0usize];
+    for k in 1..BANDS {
+        let q = pilot[k * pilot.len() / BANDS];
+        let i = table.partition_point(|&e| e <= q).min(table.len() - 1);
+        if i > *bands.last().unwrap() {
+            bands.push(i);
+        }
+    }
+    if *bands.last().unwrap() < table.len() - 1 {
+        bands.push(table.len() - 1);
+    }
+    let phi_edge = |j: usize| -PI + 2.0 * PI * j as f64 / PHI_CELLS as f64;
+    let mut expected = Vec::new();
+    for w in bands.windows(2) {
+        let edges = &table[w[0]..=w[1]];
+        for j in 0..PHI_CELLS {
+            expected.push(n as f64 * integrate_pdf_h(b, wo, edges, phi_edge(j), phi_edge(j + 1)));
+        }
+    }
+    expected.push(n as f64 * b.lost_mass(wo));
+    let mut observed = vec![0.0; expected.len()];
+    let lost_cell = expected.len() - 1;
+    for _ in 0..n {
+        let s = draw(&mut rng);
+        if s.is_lost() {
+            observed[lost_cell] += 1.0;
+            continue;
+        }
+        let (th, ph) = half_angles(s.wi);
+        let i = table.partition_point(|&e| e <= th);
+        let band = bands.partition_point(|&e| e < i).clamp(1, bands.len() - 1) - 1;
+        let j = (((ph + PI) / (2.0 * PI) * PHI_CELLS as f64) as usize).min(PHI_CELLS - 1);
+        observed[band * PHI_CELLS + j] += 1.0;
+    }
+    let (mut chi2, mut dof) = (0.0, 0usize);
+    let (mut pool_e, mut pool_o) = (0.0, 0.0);
+    for (e, o) in expected.iter().zip(&observed) {
+        assert!(!(*e == 0.0 && *o > 0.0), "draws in a cell of zero pdf");
+        if *e < 5.0 {
+            pool_e += e;
+            pool_o += o;
+        } else {
+            chi2 += (o - e).powi(2) / e;
+            dof += 1;
+        }
+    }
+    if pool_e > 0.0 {
+        chi2 += (pool_o - pool_e).powi(2) / pool_e;
+        dof += 1;
+    }
+    let total_e: f64 = expected.iter().sum();
+    assert!(
+        (total_e / n as f64 - 1.0).abs() < 1e-3,
+        "expected counts sum to {total_e} of {n}"
+    );
+    gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
+}
+
+#[test]
+fn chi_square_sample_matches_pdf() {
+    let views = [0.0, 45.0, 85.0];
+    let all = models();
+    let tests = all.len() * views.len();
+    // Sidak-corrected per-test level for a 1% family-wise level.
+    let alpha = 1.0 - (1.0 - 0.01f64).powf(1.0 / tests as f64);
+    let mut failures = Vec::new();
+    for (i, (name, b)) in all.iter().enumerate() {
+        for (j, &theta_o) in views.iter().enumerate() {
+            let p = chi2_p_value(b, wo_at(theta_o), 400_000, 100 + (i * 10 + j) as u64);
+            eprintln!("chi2 {name:12} theta_o {theta_o:4}: p = {p:.4}");
+            if p.is_nan() || p <= alpha {
+                failures.push(format!(
+                    "{name} at {theta_o} deg: p = {p:.3e} < {alpha:.3e}"
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn chi_square_detects_a_wrong_pdf() {
+    // The same test must reject a sampler whose pdf is off: compare the
+    // glossy model's draws with the three-lobe model's pdf.
+    let wo = wo_at(30.0);
+    let good = NpfBxdf::new(glossy()).unwrap();
+    let p_good = chi2_p_value(&good, wo, 100_000, 5);
+    assert!(p_good > 1e-3, "{p_good}");
+    // A model that differs only a little: alpha 0.2 vs 0.22.
+    let other = NpfBxdf::new(known_factor_model(Layout::default(), &[0.22])).unwrap();
+    let mixed = Mixed {
+        draw: &good,
+        pdf: &other,
+    };
+    let p_bad = mixed.p_value(wo);
+    assert!(p_bad < 1e-6, "a wrong pdf passed: p = {p_bad}");
+}
+
+struct Mixed<'a> {
+    draw: &'a NpfBxdf,
+    pdf: &'a NpfBxdf,
+}
+
+impl Mixed<'_> {
+    /// Chi-square of draws from one model against another's pdf, on a
+    /// fixed 16 x 32 grid.
+    fn p_value(&self, wo: Vec3) -> f64 {
+        let n = 200_000;
+        let (nt, np) = (16, 32);
+        let mut rng = Pcg64::seed_from_u64(9);
+        let mut obs = vec![0.0; nt * np + 1];
+        for _ in 0..n {
+            let s = self.draw.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
+            if s.is_lost() {
+                obs[nt * np] += 1.0;
+                continue;
+            }
+            let t = s.wi[2].clamp(0.0, 1.0).acos();
+            let p = s.wi[1].atan2(s.wi[0]).rem_euclid(2.0 * PI);
+            let i = ((t / (PI / 2.0) * nt as f64) as usize).min(nt - 1);
+            let j = ((p / (2.0 * PI) * np as f64) as usize).min(np - 1);
+            obs[i * np + j] += 1.0;
+        }
+        let mut chi2 = 0.0;
+        let mut dof = 0;
+        for i in 0..nt {
+            for j in 0..np {
+                let th = panel_edges(
+                    i as f64 * PI / 2.0 / nt as f64,
+                    (i + 1) as f64 * PI / 2.0 / nt as f64,
+                    4,
+                    &[],
+                );
+                let ph = panel_edges(
+                    j as f64 * 2.0 * PI / np as f64,
+                    (j + 1) as f64 * 2.0 * PI / np as f64,
+                    4,
+                    &[],
+                );
+                let e = n as f64 * integrate(&|wi| self.pdf.pdf(wo, wi), &th, &ph);
+                if e >= 5.0 {
+                    chi2 += (obs[i * np + j] - e).powi(2) / e;
+                    dof += 1;
+                }
+            }
+        }
+        gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
+    }
+}
+
+#[test]
+fn chi_square_helper_is_calibrated() {
+    // Q(k/2, x/2) for known chi-square quantiles.
+    assert!((gamma_q(0.5, 3.841_458_820_694_124 / 2.0) - 0.05).abs() < 1e-9);
+    assert!((gamma_q(5.0, 23.209_251_158_954_36 / 2.0) - 0.01).abs() < 1e-9);
+    assert!((gamma_q(50.0, 124.342_113_404_3 / 2.0) - 0.05).abs() < 1e-8);
+}
