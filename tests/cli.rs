@@ -157,6 +157,13 @@ fn bad_flags_and_outputs_fail_cleanly_and_nothing_is_overwritten() {
     assert!(!bad_ext.exists());
     let no_dir = dir.path().join("absent/m.json");
     assert_fails(&quick_fit(&input, &no_dir, &[]), "does not exist");
+    // An output folder nobody can write in fails before the fit starts.
+    if Path::new("/proc").is_dir() {
+        assert_fails(
+            &quick_fit(&input, Path::new("/proc/m.json"), &[]),
+            "cannot write in /proc",
+        );
+    }
 
     // An existing output survives a run without --force, byte for byte.
     std::fs::write(&out, b"keep me").unwrap();

@@ -44,5 +44,14 @@ pub fn check_output(path: &Path, force: bool) -> CliResult {
             parent.display()
         )));
     }
+    // Outputs are written through a temporary file in the same folder:
+    // find out now, not after a long fit, whether that is possible.
+    tempfile::NamedTempFile::new_in(parent).map_err(|e| {
+        CliError::Message(format!(
+            "{}: cannot write in {}: {e}",
+            path.display(),
+            parent.display()
+        ))
+    })?;
     Ok(())
 }
