@@ -6,7 +6,7 @@
 
 use npf::samples::Weighting;
 use npf::solver::GMethod;
-use npf::stability::{cases, run, Config};
+use npf::stability::{cases, run, Config, Outcome};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -21,6 +21,7 @@ fn main() {
     println!("Stability suite: 1/{thin} of each table, at most {sweeps} sweeps, errors against the clean truth within 85 degrees.\n");
     println!("| case | G method | lobes | weighting | sweeps | converged | monotone (max rise / data) | finite | non-negative | degenerate | rel. cos RMSE | log RMSE | seconds |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut all: Vec<Outcome> = Vec::new();
     for case in cases() {
         if filter
             .as_ref()
@@ -67,5 +68,42 @@ fn main() {
                 }
             }
         }
+    }
+    summary(&all);
+}
+
+/// Case x G method, over the 9 runs (lobes x weighting) of each: how many
+/// converged, stayed monotone, stayed finite and non-negative, degenerated,
+/// and the best and median error.
+fn summary(all: &[Outcome]) {
+    println!("\n## Summary: case x G method (9 runs each: 1-3 lobes x 3 weightings)\n");
+    println!("| case | G method | converged | monotone | finite, non-negative | degenerate lobes | best rel. cos RMSE | median rel. cos RMSE |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let mut keys: Vec<(String, GMethod)> = Vec::new();
+    for o in all {
+        let k = (o.case.clone(), o.config.g_method);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    for (case, method) in keys {
+        let runs: Vec<&Outcome> = all
+            .iter()
+            .filter(|o| o.case == case && o.config.g_method == method && o.error.is_none())
+            .collect();
+        let n = runs.len();
+        let count = |f: &dyn Fn(&Outcome) -> bool| runs.iter().filter(|o| f(o)).count();
+        let mut errs: Vec<f64> = runs.iter().map(|o| o.rel_cos_rmse).collect();
+        errs.sort_by(f64::total_cmp);
+        let median = errs.get(n / 2).copied().unwrap_or(f64::NAN);
+        println!(
+            "| {case} | {method:?} | {}/{n} | {}/{n} | {}/{n} | {}/{n} | {:.3e} | {:.3e} |",
+            count(&|o| o.converged),
+            count(&|o| o.monotone()),
+            count(&|o| o.finite && o.non_negative),
+            count(&|o| o.degenerate.is_some()),
+            errs.first().copied().unwrap_or(f64::NAN),
+            median
+        );
     }
 }
