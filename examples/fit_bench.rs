@@ -3,7 +3,7 @@
 //! per material: wall time (load, sample set, fit), sweeps, final objective,
 //! cosine-weighted and log RMSE, peak memory, and where the fit's time goes.
 //!
-//!     cargo run --release --example fit_bench -- DATA_DIR [--threads N]
+//!     cargo run --release --example fit_bench -- DATA_DIR [--threads N] [--max-sweeps N]
 //!
 //! Each material runs in its own child process so that its peak resident
 //! memory (Linux VmHWM) is its own. Make DATA_DIR with
@@ -26,12 +26,18 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .map(|v| v.parse::<usize>().expect("--threads N"))
         .unwrap_or(0);
+    let max_sweeps = args
+        .iter()
+        .position(|a| a == "--max-sweeps")
+        .and_then(|i| args.get(i + 1))
+        .map(|v| v.parse::<usize>().expect("--max-sweeps N"))
+        .unwrap_or(FitOptions::default().max_sweeps);
     if let Some(i) = args.iter().position(|a| a == "--one") {
         let result = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .expect("thread pool")
-            .install(|| one(Path::new(&args[i + 1])));
+            .install(|| one(Path::new(&args[i + 1]), max_sweeps));
         match result {
             Ok(line) => println!("{line}"),
             Err(e) => {
@@ -79,7 +85,7 @@ fn main() {
 }
 
 /// One material, in this process: returns the rest of its table row.
-fn one(path: &Path) -> Result<String, String> {
+fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
     let t0 = Instant::now();
     let table = MerlTable::read(path).map_err(|e| e.to_string())?;
     let samples = table.samples(&path.display().to_string());
@@ -87,7 +93,11 @@ fn one(path: &Path) -> Result<String, String> {
     let set = FitSet::build(&samples, Layout::default(), SampleOptions::default())
         .map_err(|e| e.to_string())?;
     let prep = t0.elapsed().as_secs_f64();
-    let res = Executor::new(&set, FitOptions::default()).run()?;
+    let opts = FitOptions {
+        max_sweeps,
+        ..Default::default()
+    };
+    let res = Executor::new(&set, opts).run()?;
     let wall = t0.elapsed().as_secs_f64();
     let m = compare_model(&samples, SampleOptions::default().max_theta_deg, &res.model);
     // Mean milliseconds per sweep in each kind of stage (summed over lobes).
