@@ -32,7 +32,11 @@ fn main() {
     files.sort();
     print!("| material |");
     for t in &targets {
-        print!(" {} <= {}: chosen (params) | error reached |", t.name(), t.threshold());
+        print!(
+            " {} <= {}: chosen (params) | error reached |",
+            t.name(),
+            t.threshold()
+        );
     }
     println!(" fits | seconds |");
     println!("|---|{}---|---|", "---|---|".repeat(targets.len()));

@@ -44,6 +44,7 @@ fn main() {
                         weighting,
                     };
                     let o = run(&case, &clean, &data, config, sweeps);
+                    all.push(o.clone());
                     if let Some(e) = &o.error {
                         println!(
                             "| {} | {g_method:?} | {lobes} | {weighting:?} | error: {e} |",

@@ -15,9 +15,9 @@
 //!   is not above 1e-6 of that maximum), so s_C^m carries colour and F its
 //!   angular shape.
 //! Entries no sample constrains are filled: D and F from the nearest entry
-//! with data; G before the first constrained point takes that value, and
-//! after the last it ramps linearly to 0 at 90 degrees, which keeps
-//! G/cos finite at grazing angles.
+//! with data; G before the first constrained point takes that value, after
+//! the last it holds its value up to the grazing cut-off, and past the cut
+//! it ramps linearly to 0 at 90 degrees, which keeps G/cos finite.
 
 use super::state::Factors;
 use crate::samples::FitSet;
@@ -35,9 +35,11 @@ pub fn d_measure(set: &FitSet) -> Vec<f64> {
 }
 
 pub fn fill_unconstrained(f: &mut Factors, set: &FitSet) {
+    let g_free =
+        crate::samples::last_free_g_node(&set.layout, set.options.max_theta_deg.to_radians());
     for m in 0..f.lobes() {
         fill_d(&mut f.d[m], &set.d_inc.has_data);
-        fill_g(&mut f.g[m], &set.g_inc.has_data);
+        fill_g(&mut f.g[m], &set.g_inc.has_data, g_free);
     }
     for ch in 0..3 {
         fill_nearest(&mut f.f[ch], &set.f_inc.has_data);
@@ -66,7 +68,13 @@ fn fill_d(d: &mut [f64], has: &[bool]) {
     fill_nearest(d, has);
 }
 
-fn fill_g(g: &mut [f64], has: &[bool]) {
+/// G before the first constrained point takes its value; between the last
+/// constrained point and the grazing cut-off (`free`, the last free point)
+/// it holds the last constrained value (missing data there says nothing
+/// about G, and a microfacet G stays near its last value until grazing
+/// angles); past the cut it ramps linearly to 0 at 90 degrees, as the
+/// sample set ties those points, which keeps G/cos finite.
+fn fill_g(g: &mut [f64], has: &[bool], free: usize) {
     let (Some(first), Some(last)) = (has.iter().position(|&h| h), has.iter().rposition(|&h| h))
     else {
         return;
@@ -75,11 +83,12 @@ fn fill_g(g: &mut [f64], has: &[bool]) {
         g[k] = g[first];
     }
     let n = g.len() - 1;
-    if last == n {
-        return;
+    let free = free.max(last).min(n);
+    for k in last + 1..=free {
+        g[k] = g[last];
     }
-    for k in last + 1..=n {
-        g[k] = g[last] * (n - k) as f64 / (n - last) as f64;
+    for k in free + 1..=n {
+        g[k] = g[free] * (n - k) as f64 / (n - free) as f64;
     }
 }
 
