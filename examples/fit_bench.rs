@@ -69,6 +69,8 @@ fn main() {
                 f.to_str().unwrap(),
                 "--threads",
                 &threads.to_string(),
+                "--max-sweeps",
+                &max_sweeps.to_string(),
             ])
             .output()
             .expect("run child");
