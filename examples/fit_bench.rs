@@ -58,7 +58,12 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for f in files {
         let out = Command::new(std::env::current_exe().unwrap())
-            .args(["--one", f.to_str().unwrap(), "--threads", &threads.to_string()])
+            .args([
+                "--one",
+                f.to_str().unwrap(),
+                "--threads",
+                &threads.to_string(),
+            ])
             .output()
             .expect("run child");
         let name = f.file_stem().unwrap().to_string_lossy();

@@ -27,6 +27,10 @@ enum Command {
     Eval(cli::eval::EvalArgs),
     /// The main job on self-made data: tabulate an analytic BRDF, fit it, export, reconstruct.
     Demo(cli::demo::DemoArgs),
+    /// Error measures and rendering PSNR of a model (or table) against a reference table.
+    Compare(cli::compare::CompareArgs),
+    /// Fit every configuration on every material of a folder and write a benchmark report.
+    Report(cli::report::ReportArgs),
     /// Energy-compensation tables, furnace checks and the microsurface simulator.
     #[command(subcommand)]
     Energy(cli::energy::EnergyCommand),
@@ -40,6 +44,8 @@ fn main() -> ExitCode {
         Command::Reconstruct(a) => cli::reconstruct::run(a),
         Command::Eval(a) => cli::eval::run(a),
         Command::Demo(a) => cli::demo::run(a),
+        Command::Compare(a) => cli::compare::run(a),
+        Command::Report(a) => cli::report::run(a),
         Command::Energy(cmd) => cli::energy::run(cmd),
     };
     match result {

@@ -88,6 +88,9 @@ pub struct FitArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub config: FitConfig,
+    /// Which model to fit: the shared-factor model or a baseline (see docs/evaluation.md).
+    #[arg(long, value_enum, default_value_t = crate::baselines::ModelKind::Factor)]
+    pub model: crate::baselines::ModelKind,
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
@@ -214,7 +217,7 @@ pub fn run(args: FitArgs) -> CliResult {
         .validate()
         .map_err(CliError::Message)?;
     let samples = load_table(&args.input)?;
-    let fitted = fit_samples(&samples, &args.config, !args.quiet)?;
+    let fitted = crate::baselines::fitted(&samples, &args.config, args.model, !args.quiet)?;
     modelfile::write(
         &args.output,
         &ModelFile {
