@@ -18,9 +18,9 @@ use crate::solver::GMethod;
 use clap::Args;
 use npf_data_loaders::atomic::write_bytes_atomic;
 use npf_data_loaders::{MeasuredSamples, MerlTable};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock};
 
 #[derive(Args, Debug)]
@@ -55,6 +55,11 @@ pub struct ReportArgs {
     /// Skip the convergence chart (it refits three configurations several times).
     #[arg(long)]
     pub no_convergence: bool,
+    /// Fit nothing: write the report from REPORT_DIR/rows.jsonl (every fit a
+    /// run finished, e.g. one stopped early), the saved models and
+    /// convergence.json.
+    #[arg(long)]
+    pub from_rows: bool,
     /// List the configurations and exit.
     #[arg(long)]
     pub list: bool,
@@ -341,7 +346,7 @@ pub fn run(args: ReportArgs) -> CliResult {
             .map_err(|e| io_err(out, e))?
             .next()
             .is_some();
-        if non_empty && !args.force {
+        if non_empty && !args.force && !args.from_rows {
             return Err(CliError::Message(format!(
                 "{}: already exists and is not empty (pass --force to write into it)",
                 out.display()
@@ -355,14 +360,30 @@ pub fn run(args: ReportArgs) -> CliResult {
         res: args.res,
         n_theta: args.n_theta,
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.jobs)
-        .build()
-        .map_err(|e| CliError::Message(format!("cannot start {} threads: {e}", args.jobs)))?;
+    // Plain OS threads pull jobs from a queue; each job runs in its own
+    // one-thread rayon pool. (Outer rayon workers waiting on an inner pool
+    // would steal further jobs and run them all at once.)
+    let threads = if args.jobs == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        args.jobs
+    };
     let data: Vec<OnceLock<Result<MaterialData, String>>> =
         materials.iter().map(|_| OnceLock::new()).collect();
-    let jobs: Vec<(usize, usize)> = (0..materials.len())
-        .flat_map(|m| (0..configs.len()).map(move |c| (m, c)))
+    // Configuration-major, in priority order, so that a run stopped early
+    // (rows.jsonl keeps every finished fit; --from-rows reports them) has
+    // the main comparisons on every material first.
+    let priority = |name: &str| {
+        ["sf-3", "independent-g", "ggx", "sf-1", "sf-2"]
+            .iter()
+            .position(|p| *p == name)
+            .unwrap_or(5)
+    };
+    let mut order: Vec<usize> = (0..configs.len()).collect();
+    order.sort_by_key(|&c| (priority(configs[c].name), c));
+    let jobs: Vec<(usize, usize)> = order
+        .iter()
+        .flat_map(|&c| (0..materials.len()).map(move |m| (m, c)))
         .collect();
     // Convergence runs.
     let conv_material = if args.no_convergence {
@@ -399,7 +420,7 @@ pub fn run(args: ReportArgs) -> CliResult {
         .expect("valid template")
         .progress_chars("=> "),
     );
-    let factor_models: Mutex<Vec<(usize, String, Model)>> = Mutex::new(Vec::new());
+    let mut factor_models: Mutex<Vec<(usize, String, Model)>> = Mutex::new(Vec::new());
     let load = |m: usize| load_material(&data[m], &materials[m], out, render_opts);
     let run_job = |m: usize, c: &Configuration| -> Row {
         let (name, _) = &materials[m];
@@ -472,30 +493,49 @@ pub fn run(args: ReportArgs) -> CliResult {
         row
     };
     let t0 = std::time::Instant::now();
-    let (rows, conv) = pool.install(|| {
-        let rows: Vec<Row> = jobs
-            .par_iter()
-            .map(|&(m, c)| {
-                let row = run_job(m, &configs[c]);
-                bar.inc(1);
-                bar.set_message(format!(
-                    "{} {}: {}",
-                    row.material,
-                    row.config,
-                    match (&row.eval, &row.error) {
-                        (Some(e), _) =>
-                            format!("{:.1} dB in {:.1} s", e.render_psnr_db, row.seconds),
-                        (_, Some(e)) => format!("failed: {e}"),
-                        _ => String::new(),
+    let next = AtomicUsize::new(0);
+    let n_conv = conv_material.map_or(0, |_| conv_configs.len());
+    let done: Mutex<Vec<Row>> = Mutex::new(Vec::new());
+    let conv_done: Mutex<Vec<(usize, String, Convergence)>> = Mutex::new(Vec::new());
+    let rows_log = Mutex::new(());
+    std::thread::scope(|scope| {
+        if args.from_rows {
+            return;
+        }
+        for _ in 0..threads {
+            scope.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::SeqCst);
+                if k < jobs.len() {
+                    let (m, c) = jobs[k];
+                    let row = run_job(m, &configs[c]);
+                    bar.inc(1);
+                    bar.set_message(format!(
+                        "{} {}: {}",
+                        row.material,
+                        row.config,
+                        match (&row.eval, &row.error) {
+                            (Some(e), _) =>
+                                format!("{:.1} dB in {:.1} s", e.render_psnr_db, row.seconds),
+                            (_, Some(e)) => format!("failed: {e}"),
+                            _ => String::new(),
+                        }
+                    ));
+                    if let (Ok(_guard), Ok(line)) = (rows_log.lock(), serde_json::to_string(&row)) {
+                        use std::io::Write;
+                        let _ = std::fs::OpenOptions::new()
+                            .create(true)
+                            .append(true)
+                            .open(out.join("rows.jsonl"))
+                            .and_then(|mut f| writeln!(f, "{line}"));
                     }
-                ));
-                row
-            })
-            .collect();
-        let conv = conv_material.map(|m| {
-            conv_configs
-                .par_iter()
-                .map(|c| {
+                    if let Ok(mut d) = done.lock() {
+                        d.push(row);
+                    }
+                } else if k < jobs.len() + n_conv {
+                    let i = k - jobs.len();
+                    let (Some(m), c) = (conv_material, conv_configs[i]) else {
+                        break;
+                    };
                     let r = convergence_run(
                         &data[m],
                         &materials[m],
@@ -505,12 +545,73 @@ pub fn run(args: ReportArgs) -> CliResult {
                         args.max_sweeps,
                     );
                     bar.inc(1);
-                    (c.name.to_string(), r)
-                })
-                .collect::<Vec<_>>()
-        });
-        (rows, conv)
+                    if let Ok(mut d) = conv_done.lock() {
+                        d.push((i, c.name.to_string(), r));
+                    }
+                } else {
+                    break;
+                }
+            });
+        }
     });
+    let mut rows = done
+        .into_inner()
+        .map_err(|_| CliError::Message("a worker failed".into()))?;
+    let mut conv_loaded = None;
+    if args.from_rows {
+        let path = out.join("rows.jsonl");
+        let text = std::fs::read_to_string(&path).map_err(|e| io_err(&path, e))?;
+        for (k, line) in text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty())
+        {
+            let row: Row = serde_json::from_str(line).map_err(|e| {
+                CliError::Message(format!("{}: line {}: {e}", path.display(), k + 1))
+            })?;
+            let known = materials.iter().any(|m| m.0 == row.material)
+                && configs.iter().any(|c| c.name == row.config);
+            if known {
+                rows.retain(|r| !(r.material == row.material && r.config == row.config));
+                rows.push(row);
+            }
+        }
+        let models = factor_models
+            .get_mut()
+            .map_err(|_| CliError::Message("a worker failed".into()))?;
+        for r in &rows {
+            if r.config == "sf-3" || r.config == "independent-g" {
+                let p = out.join(&r.material).join(format!("{}.json", r.config));
+                let m = materials.iter().position(|m| m.0 == r.material);
+                if let (Ok(f), Some(m)) = (crate::modelfile::read(&p), m) {
+                    models.push((m, r.config.clone(), f.model));
+                }
+            }
+        }
+        let cpath = out.join("convergence.json");
+        if let Ok(text) = std::fs::read_to_string(&cpath) {
+            conv_loaded = serde_json::from_str::<Vec<(String, Convergence)>>(&text).ok();
+        }
+    }
+    rows.sort_by_key(|r| {
+        (
+            materials.iter().position(|m| m.0 == r.material),
+            configs.iter().position(|c| c.name == r.config),
+        )
+    });
+    let mut conv_v = conv_done
+        .into_inner()
+        .map_err(|_| CliError::Message("a worker failed".into()))?;
+    conv_v.sort_by_key(|c| c.0);
+    let conv: Option<Vec<(String, Convergence)>> = if args.from_rows {
+        conv_loaded
+    } else {
+        conv_material.map(|_| conv_v.into_iter().map(|c| (c.1, c.2)).collect())
+    };
+    if let (Some(c), false) = (&conv, args.from_rows) {
+        let json = serde_json::to_string_pretty(c).map_err(|e| CliError::Message(e.to_string()))?;
+        write_file(&out.join("convergence.json"), json.as_bytes())?;
+    }
     bar.finish_and_clear();
     let total_seconds = t0.elapsed().as_secs_f64();
     // Results files.
@@ -718,7 +819,11 @@ fn markdown(
         configs.len(),
         rows.len(),
         total_seconds,
-        rayon::current_num_threads().max(if args.jobs == 0 { 0 } else { args.jobs }),
+        if args.jobs == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            args.jobs
+        },
         args.res,
         args.res,
         args.n_theta,
@@ -839,7 +944,8 @@ fn markdown(
         for c in configs {
             let _ = match get(m, c.name) {
                 Some(Row { eval: Some(e), .. }) => write!(s, " {:.2} |", e.render_psnr_db),
-                _ => write!(s, " failed |"),
+                Some(_) => write!(s, " failed |"),
+                None => write!(s, " not run |"),
             };
         }
         let _ = writeln!(s);
