@@ -342,3 +342,29 @@ fn report_runs_on_a_tiny_folder() {
     ]);
     assert!(!again.status.success());
 }
+
+/// The albedo quadrature integrates a Lambertian exactly enough and
+/// resolves a near-mirror lobe (it runs over the half vector, with MERL's
+/// theta_h spacing).
+#[test]
+fn albedo_quadrature_handles_diffuse_and_mirror_like_lobes() {
+    use npf::evaluation::albedo;
+    for deg in [0.0f64, 30.0, 60.0, 75.0] {
+        let a = albedo(deg.to_radians(), |_, _| [1.0 / std::f64::consts::PI; 3]);
+        assert!((a[0] - 1.0).abs() < 2e-3, "{deg}: {a:?}");
+    }
+    let mirror = GgxLambert {
+        kd: [0.0; 3],
+        f0: [1.0; 3],
+        alpha: 0.01,
+    };
+    let f = |wi: [f64; 3], wo: [f64; 3]| {
+        mirror
+            .eval_angles(&npf::loaders::geometry::Angles::from_directions(wi, wo))
+            .unwrap_or([0.0; 3])
+    };
+    for deg in [0.0f64, 30.0, 60.0] {
+        let a = albedo(deg.to_radians(), f);
+        assert!(a[0] > 0.97 && a[0] < 1.01, "{deg}: {a:?}");
+    }
+}

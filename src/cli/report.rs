@@ -60,6 +60,10 @@ pub struct ReportArgs {
     /// convergence.json.
     #[arg(long)]
     pub from_rows: bool,
+    /// With --from-rows: recompute every measure from the saved models
+    /// (after a change to the measures; fit times and sweeps are kept).
+    #[arg(long, requires = "from_rows")]
+    pub reevaluate: bool,
     /// List the configurations and exit.
     #[arg(long)]
     pub list: bool,
@@ -576,6 +580,40 @@ pub fn run(args: ReportArgs) -> CliResult {
                 rows.push(row);
             }
         }
+        if args.reevaluate {
+            for (m, material) in materials.iter().enumerate() {
+                let md = load_material(&data[m], material, out, render_opts)
+                    .as_ref()
+                    .map_err(|e| CliError::Message(e.clone()))?;
+                let reference = Reference {
+                    table: &md.table,
+                    samples: &md.samples,
+                    image: md.image.clone(),
+                    render: render_opts,
+                };
+                for r in rows.iter_mut().filter(|r| r.material == material.0) {
+                    let p = out.join(&r.material).join(format!("{}.json", r.config));
+                    if let Ok(f) = crate::modelfile::read(&p) {
+                        let max_theta = default_fit_config().max_theta;
+                        r.eval = Some(
+                            reference
+                                .evaluate_model(max_theta, &f.model)
+                                .map_err(CliError::Message)?
+                                .0,
+                        );
+                    }
+                }
+                bar.inc(1);
+            }
+            let mut text = String::new();
+            for r in &rows {
+                text.push_str(
+                    &serde_json::to_string(r).map_err(|e| CliError::Message(e.to_string()))?,
+                );
+                text.push('\n');
+            }
+            write_file(&out.join("rows.jsonl"), text.as_bytes())?;
+        }
         let models = factor_models
             .get_mut()
             .map_err(|_| CliError::Message("a worker failed".into()))?;
@@ -811,6 +849,17 @@ fn markdown(
     let mut s = String::new();
     let get = |m: &str, c: &str| rows.iter().find(|r| r.material == m && r.config == c);
     let _ = writeln!(s, "# npf benchmark report\n");
+    if args.from_rows {
+        let _ = writeln!(
+            s,
+            "Rebuilt from `rows.jsonl`{} (the time below is that of this run, not of the fits).\n",
+            if args.reevaluate {
+                " with every measure recomputed from the saved models"
+            } else {
+                ""
+            }
+        );
+    }
     let _ = writeln!(
         s,
         "{} materials from `{}`, {} configurations, {} fits in {:.0} s wall-clock ({} parallel jobs, one thread per fit). Render {}x{} px, environment quadrature {}x{} directions. Definitions: `docs/evaluation.md`.\n",
