@@ -277,50 +277,22 @@ fn draw_factors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, title: &str, m
             format!("lobe {k}")
         }
     };
-    let deg = |t: f64| t.to_degrees();
-    let d: Vec<(String, Vec<(f64, f64)>)> = m
-        .lobes
-        .iter()
-        .enumerate()
-        .map(|(k, lobe)| {
-            (
-                name(k),
-                lobe.d
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &v)| (deg(l.d.node(i)), v as f64))
-                    .collect(),
-            )
-        })
+    // One curve per table: (node angle in degrees, value).
+    let curve = |axis: crate::interp::Axis, t: &[f32]| -> Vec<(f64, f64)> {
+        t.iter()
+            .enumerate()
+            .map(|(i, &v)| (axis.node(i).to_degrees(), v as f64))
+            .collect()
+    };
+    type Series = Vec<(String, Vec<(f64, f64)>)>;
+    let d: Series = (m.lobes.iter().enumerate())
+        .map(|(k, lobe)| (name(k), curve(l.d, &lobe.d)))
         .collect();
-    let f: Vec<(String, Vec<(f64, f64)>)> = m
-        .fresnel
-        .iter()
-        .enumerate()
-        .map(|(c, t)| {
-            (
-                ["F_R", "F_G", "F_B"][c].to_string(),
-                t.iter()
-                    .enumerate()
-                    .map(|(i, &v)| (deg(l.f.node(i)), v as f64))
-                    .collect(),
-            )
-        })
+    let f: Series = (m.fresnel.iter().enumerate())
+        .map(|(c, t)| (["F_R", "F_G", "F_B"][c].to_string(), curve(l.f, t)))
         .collect();
-    let g: Vec<(String, Vec<(f64, f64)>)> = m
-        .lobes
-        .iter()
-        .enumerate()
-        .map(|(k, lobe)| {
-            (
-                name(k),
-                lobe.g
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &v)| (deg(l.g.node(i)), v as f64))
-                    .collect(),
-            )
-        })
+    let g: Series = (m.lobes.iter().enumerate())
+        .map(|(k, lobe)| (name(k), curve(l.g, &lobe.g)))
         .collect();
     panel(&areas[0], "D(theta_h) (log)", "theta_h (deg)", &d, true)?;
     panel(
