@@ -5,13 +5,17 @@
 //! → [`solver`] (AWLS) → [`modelfile`] (export) / [`sampling`] (renderers).
 //! [`energy`] holds the energy-compensation toolkit.
 
+pub mod baselines;
+pub mod charts;
 pub mod cli;
 pub mod energy;
+pub mod evaluation;
 pub mod interp;
 pub mod metrics;
 pub mod model;
 pub mod modelfile;
 pub mod reconstruct;
+pub mod render;
 pub mod samples;
 pub mod sampling;
 pub mod selection;

@@ -29,6 +29,10 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Draw directions from a model's importance sampler (CSV of wi, pdf, weight).
     Sample(cli::sample::SampleArgs),
+    /// Error measures and rendering PSNR of a model (or table) against a reference table.
+    Compare(cli::compare::CompareArgs),
+    /// Fit every configuration on every material of a folder and write a benchmark report.
+    Report(cli::report::ReportArgs),
     /// Energy-compensation tables, furnace checks and the microsurface simulator.
     #[command(subcommand)]
     Energy(cli::energy::EnergyCommand),
@@ -43,6 +47,8 @@ fn main() -> ExitCode {
         Command::Eval(a) => cli::eval::run(a),
         Command::Demo(a) => cli::demo::run(a),
         Command::Sample(a) => cli::sample::run(a),
+        Command::Compare(a) => cli::compare::run(a),
+        Command::Report(a) => cli::report::run(a),
         Command::Energy(cmd) => cli::energy::run(cmd),
     };
     match result {

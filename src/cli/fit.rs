@@ -103,6 +103,9 @@ pub struct FitArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub config: FitConfig,
+    /// Which model to fit: the shared-factor model or a baseline (see docs/evaluation.md).
+    #[arg(long, value_enum, default_value_t = crate::baselines::ModelKind::Factor)]
+    pub model: crate::baselines::ModelKind,
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
@@ -111,11 +114,11 @@ pub struct FitArgs {
     pub quiet: bool,
     /// Choose the smallest model (1-3 lobes, 30/45/90 values per table)
     /// that meets METRIC=VALUE: log-rmse=X or rel-rmse=X.
-    #[arg(long, value_name = "METRIC=VALUE", conflicts_with_all = ["lobes", "nodes", "budget"])]
+    #[arg(long, value_name = "METRIC=VALUE", conflicts_with_all = ["lobes", "nodes", "budget", "model"])]
     pub target: Option<Target>,
     /// Choose the model with the lowest error (see --budget-metric) among
     /// those with at most N parameters.
-    #[arg(long, value_name = "N", conflicts_with_all = ["lobes", "nodes"])]
+    #[arg(long, value_name = "N", conflicts_with_all = ["lobes", "nodes", "model"])]
     pub budget: Option<usize>,
     /// Metric --budget minimises.
     #[arg(long, value_enum, default_value_t = BudgetMetric::LogRmse, requires = "budget")]
@@ -256,7 +259,7 @@ pub fn run(args: FitArgs) -> CliResult {
             };
             select(&samples, &args, Selection::Budget(budget, metric))?
         }
-        (None, None) => fit_samples(&samples, &args.config, !args.quiet)?,
+        (None, None) => crate::baselines::fitted(&samples, &args.config, args.model, !args.quiet)?,
     };
     modelfile::write(
         &args.output,
@@ -314,7 +317,7 @@ fn select(samples: &MeasuredSamples, args: &FitArgs, how: Selection) -> Result<F
                 );
             }
             let record = serde_json::json!({
-                "mode": "target", "target": target, "met": met,
+                "model": "factor", "mode": "target", "target": target, "met": met,
                 "chosen": trials[i], "trials": trials,
             });
             (i, record)
@@ -327,7 +330,7 @@ fn select(samples: &MeasuredSamples, args: &FitArgs, how: Selection) -> Result<F
                 )));
             };
             let record = serde_json::json!({
-                "mode": "budget", "budget": budget, "metric": metric.name(),
+                "model": "factor", "mode": "budget", "budget": budget, "metric": metric.name(),
                 "chosen": trials[i], "trials": trials,
             });
             (i, record)

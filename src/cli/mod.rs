@@ -1,12 +1,14 @@
 //! Subcommand implementations of the `npf` program, one module each.
 //! Every command returns a [`CliError`] instead of panicking.
 
+pub mod compare;
 pub mod demo;
 pub mod energy;
 pub mod eval;
 pub mod fit;
 pub mod info;
 pub mod reconstruct;
+pub mod report;
 pub mod sample;
 
 use std::path::Path;

@@ -1,0 +1,247 @@
+//! A deterministic sphere renderer for comparing a BRDF model with its
+//! measured table (see `docs/evaluation.md` for the definitions).
+//!
+//! Scene (world frame: +y up, the camera looks down -z from +z):
+//! - an orthographic view of a unit sphere filling a `res` x `res` image;
+//!   pixel (i, j) has centre x = (2 (i + 1/2) / res - 1), y = 1 - 2 (j + 1/2)
+//!   / res; pixels with x^2 + y^2 >= 1 are background (black, and not part
+//!   of any error);
+//! - a smooth environment: L(w) = sky (0.55 + 0.45 w_y) + ground (0.5 - 0.5
+//!   w_y)^2, sky = (0.40, 0.50, 0.70), ground = (0.30, 0.22, 0.15) (1/sr
+//!   scaled radiance; linear in w_y plus a quadratic bounce term, so it has
+//!   no edges);
+//! - three directional (delta) lights, irradiance E at normal incidence:
+//!   key from (-0.5, 0.6, 0.62) with E = (3.0, 2.85, 2.6), fill from
+//!   (0.7, 0.2, 0.7) with E = (0.6, 0.7, 0.9), rim from (0.15, 0.4, -0.9)
+//!   with E = (2.0, 2.0, 2.0) (directions normalised).
+//!
+//! Radiance at a pixel: L_o = sum_lights f(wi, wo) E cos theta_i + sum_k
+//! f(w_k, wo) L(w_k) cos theta_k dOmega_k over a fixed midpoint grid on the
+//! sphere of directions: `n_theta` strata uniform in w_y (equal area) times
+//! `2 n_theta` in azimuth, each of solid angle 4 pi / (2 n_theta^2). Only
+//! directions above the pixel's tangent plane count. The quadrature is the
+//! same for the table and the model, and has no randomness.
+//!
+//! Display values: P = srgb(L / (1 + L)) per channel (Reinhard, then the
+//! sRGB transfer curve), in [0, 1). Rendering PSNR = 10 log10(1 / MSE) over
+//! the sphere's pixels and the three channels of P, in dB (infinite for
+//! identical images).
+
+use npf_data_loaders::geometry::{dot, normalize, Vec3};
+use rayon::prelude::*;
+
+/// Render settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Image width and height in pixels.
+    pub res: usize,
+    /// Environment quadrature: strata in w_y (azimuth gets twice as many).
+    pub n_theta: usize,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            res: 128,
+            n_theta: 24,
+        }
+    }
+}
+
+/// A linear-radiance RGB image; `mask` marks the sphere's pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub res: usize,
+    pub rgb: Vec<[f64; 3]>,
+    pub mask: Vec<bool>,
+}
+
+const SKY: [f64; 3] = [0.40, 0.50, 0.70];
+const GROUND: [f64; 3] = [0.30, 0.22, 0.15];
+
+/// The environment radiance in world direction `w`.
+pub fn environment(w: Vec3) -> [f64; 3] {
+    let a = 0.55 + 0.45 * w[1];
+    let b = (0.5 - 0.5 * w[1]).powi(2);
+    std::array::from_fn(|c| SKY[c] * a + GROUND[c] * b)
+}
+
+/// The directional lights: (direction towards the light, irradiance).
+pub fn lights() -> [(Vec3, [f64; 3]); 3] {
+    [
+        (normalize([-0.5, 0.6, 0.62]), [3.0, 2.85, 2.6]),
+        (normalize([0.7, 0.2, 0.7]), [0.6, 0.7, 0.9]),
+        (normalize([0.15, 0.4, -0.9]), [2.0, 2.0, 2.0]),
+    ]
+}
+
+/// The environment quadrature: (direction, L(w) dOmega).
+pub fn quadrature(n_theta: usize) -> Vec<(Vec3, [f64; 3])> {
+    let n_theta = n_theta.max(1);
+    let n_phi = 2 * n_theta;
+    let d_omega = 4.0 * std::f64::consts::PI / (n_theta * n_phi) as f64;
+    let mut out = Vec::with_capacity(n_theta * n_phi);
+    for a in 0..n_theta {
+        let y = 1.0 - 2.0 * (a as f64 + 0.5) / n_theta as f64;
+        let r = (1.0 - y * y).max(0.0).sqrt();
+        for b in 0..n_phi {
+            let phi = 2.0 * std::f64::consts::PI * (b as f64 + 0.5) / n_phi as f64;
+            let w = [r * phi.cos(), y, r * phi.sin()];
+            out.push((w, environment(w).map(|l| l * d_omega)));
+        }
+    }
+    out
+}
+
+fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Render the sphere with a BRDF `f(wi, wo)` given in the local shading
+/// frame (normal +z), values in 1/sr.
+pub fn render(opts: RenderOptions, f: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync) -> Image {
+    let res = opts.res.max(1);
+    let quad = quadrature(opts.n_theta);
+    let lights = lights();
+    let px: Vec<([f64; 3], bool)> = (0..res * res)
+        .into_par_iter()
+        .map(|p| {
+            let (i, j) = (p % res, p / res);
+            let x = 2.0 * (i as f64 + 0.5) / res as f64 - 1.0;
+            let y = 1.0 - 2.0 * (j as f64 + 0.5) / res as f64;
+            let r2 = x * x + y * y;
+            if r2 >= 1.0 {
+                return ([0.0; 3], false);
+            }
+            let n = [x, y, (1.0 - r2).sqrt()];
+            let t = {
+                let c = cross([0.0, 1.0, 0.0], n);
+                if dot(c, c) < 1e-12 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    normalize(c)
+                }
+            };
+            let b = cross(n, t);
+            let local = |v: Vec3| [dot(v, t), dot(v, b), dot(v, n)];
+            let wo = local([0.0, 0.0, 1.0]);
+            let mut l = [0.0; 3];
+            let mut add = |wi_world: Vec3, e: &[f64; 3]| {
+                let wi = local(wi_world);
+                if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                    return;
+                }
+                let v = f(wi, wo);
+                for c in 0..3 {
+                    l[c] += v[c] * e[c] * wi[2];
+                }
+            };
+            for (w, e) in &lights {
+                add(*w, e);
+            }
+            for (w, e) in &quad {
+                add(*w, e);
+            }
+            (l, true)
+        })
+        .collect();
+    Image {
+        res,
+        rgb: px.iter().map(|p| p.0).collect(),
+        mask: px.iter().map(|p| p.1).collect(),
+    }
+}
+
+fn srgb(v: f64) -> f64 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// The display value of a linear radiance: sRGB(L / (1 + L)), in [0, 1).
+pub fn display(l: f64) -> f64 {
+    let l = if l.is_finite() { l.max(0.0) } else { 0.0 };
+    srgb(l / (1.0 + l))
+}
+
+impl Image {
+    /// Display values, row-major RGB.
+    pub fn display(&self) -> Vec<[f64; 3]> {
+        self.rgb.iter().map(|p| p.map(display)).collect()
+    }
+
+    /// 8-bit sRGB bytes, row-major RGB.
+    pub fn to_rgb8(&self) -> Vec<u8> {
+        self.display()
+            .iter()
+            .flat_map(|p| p.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8))
+            .collect()
+    }
+}
+
+/// Rendering PSNR in dB of `test` against `reference` (see the module
+/// notes); `f64::INFINITY` for identical display values. Errors on images of
+/// different sizes.
+pub fn psnr(reference: &Image, test: &Image) -> Result<f64, String> {
+    if reference.res != test.res {
+        return Err(format!(
+            "images of {} and {} pixels square cannot be compared",
+            reference.res, test.res
+        ));
+    }
+    let (a, b) = (reference.display(), test.display());
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for k in 0..a.len() {
+        if !reference.mask[k] {
+            continue;
+        }
+        for c in 0..3 {
+            sum += (a[k][c] - b[k][c]).powi(2);
+        }
+        n += 3;
+    }
+    if n == 0 {
+        return Err("no sphere pixels".into());
+    }
+    let mse = sum / n as f64;
+    Ok(if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (1.0 / mse).log10()
+    })
+}
+
+/// The difference image: |P_ref - P_test| x `gain` per channel, as 8-bit RGB.
+pub fn difference_rgb8(reference: &Image, test: &Image, gain: f64) -> Vec<u8> {
+    let (a, b) = (reference.display(), test.display());
+    a.iter()
+        .zip(&b)
+        .flat_map(|(p, q)| {
+            std::array::from_fn::<u8, 3, _>(|c| {
+                ((p[c] - q[c]).abs() * gain * 255.0)
+                    .round()
+                    .clamp(0.0, 255.0) as u8
+            })
+        })
+        .collect()
+}
+
+/// Encode 8-bit RGB pixels as a PNG file's bytes.
+pub fn encode_png(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(|e| e.to_string())?;
+        w.write_image_data(rgb).map_err(|e| e.to_string())?;
+    }
+    Ok(out)
+}
