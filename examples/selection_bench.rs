@@ -4,12 +4,13 @@
 //! and shared between targets, so a material costs as many fits as its
 //! strictest target needs.
 //!
-//!     cargo run --release --example selection_bench -- DATA_DIR log-rmse=0.01 log-rmse=0.003
+//!     cargo run --release --example selection_bench -- DATA_DIR psnr=35 psnr=45 log-rmse=0.01
 
+use npf::evaluation::Reference;
 use npf::loaders::MerlTable;
-use npf::metrics::{compare_model, Metrics};
+use npf::metrics::compare_model;
 use npf::samples::{FitSet, SampleOptions};
-use npf::selection::{smallest_meeting, Candidate, Target};
+use npf::selection::{smallest_meeting, Candidate, Scores, Target};
 use npf::solver::{Executor, FitOptions};
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -44,12 +45,15 @@ fn main() {
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
         let table = MerlTable::read(&f).expect("read table");
         let samples = table.samples(&name);
-        drop(table);
-        let mut memo: HashMap<(usize, usize), (Metrics, f64)> = HashMap::new();
+        let reference = targets
+            .iter()
+            .any(|t| t.needs_render())
+            .then(|| Reference::new(&table, &samples, Default::default()));
+        let mut memo: HashMap<(usize, usize), (Scores, f64)> = HashMap::new();
         let t0 = std::time::Instant::now();
         print!("| {name} |");
         for &target in &targets {
-            let fit = |c: Candidate| -> Result<(Metrics, f64), String> {
+            let fit = |c: Candidate| -> Result<(Scores, f64), String> {
                 if let Some(r) = memo.get(&(c.lobes, c.nodes)) {
                     return Ok(*r);
                 }
@@ -60,9 +64,15 @@ fn main() {
                     ..Default::default()
                 };
                 let res = Executor::new(&set, opts).run()?;
-                let m = compare_model(&samples, 85.0, &res.model);
-                memo.insert((c.lobes, c.nodes), (m, res.seconds));
-                Ok((m, res.seconds))
+                let scores = Scores {
+                    metrics: compare_model(&samples, 85.0, &res.model),
+                    render_psnr_db: match &reference {
+                        Some(r) => Some(r.evaluate_model(85.0, &res.model)?.0.render_psnr_db),
+                        None => None,
+                    },
+                };
+                memo.insert((c.lobes, c.nodes), (scores, res.seconds));
+                Ok((scores, res.seconds))
             };
             let (i, met, trials) = smallest_meeting(target, fit).expect("fit");
             let c = trials[i].candidate;
@@ -72,7 +82,7 @@ fn main() {
                 c.lobes,
                 c.nodes,
                 trials[i].params,
-                trials[i].error
+                trials[i].value
             );
         }
         println!(" {} | {:.0} |", memo.len(), t0.elapsed().as_secs_f64());

@@ -11,7 +11,8 @@ use crate::model::Layout;
 use serde::{Deserialize, Serialize};
 
 /// What a model must reach, on the error metrics of `npf fit` (over the
-/// samples within the grazing cut-off).
+/// samples within the grazing cut-off) or on the rendering PSNR of
+/// `npf compare` (docs/evaluation.md).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "metric", content = "value", rename_all = "kebab-case")]
 pub enum Target {
@@ -19,38 +20,80 @@ pub enum Target {
     LogRmse(f64),
     /// Relative cosine-weighted RMSE at most this.
     RelRmse(f64),
+    /// Rendering PSNR (dB, standard sphere and environment) at least this.
+    Psnr(f64),
+}
+
+/// What a candidate fit scored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scores {
+    pub metrics: Metrics,
+    /// Present when the target needs it.
+    pub render_psnr_db: Option<f64>,
+}
+
+impl From<Metrics> for Scores {
+    fn from(metrics: Metrics) -> Self {
+        Scores {
+            metrics,
+            render_psnr_db: None,
+        }
+    }
 }
 
 impl Target {
-    /// The metric's value for a fit (lower is better).
-    pub fn error(&self, m: &Metrics) -> f64 {
+    /// The metric's value for a fit.
+    pub fn value(&self, s: &Scores) -> f64 {
         match self {
-            Target::LogRmse(_) => m.log_rmse,
-            Target::RelRmse(_) => m.rel_cos_rmse,
+            Target::LogRmse(_) => s.metrics.log_rmse,
+            Target::RelRmse(_) => s.metrics.rel_cos_rmse,
+            Target::Psnr(_) => s.render_psnr_db.unwrap_or(f64::NEG_INFINITY),
+        }
+    }
+
+    /// Lower is better.
+    fn badness(&self, value: f64) -> f64 {
+        match self {
+            Target::Psnr(_) => -value,
+            _ => value,
         }
     }
 
     pub fn threshold(&self) -> f64 {
         match *self {
-            Target::LogRmse(t) | Target::RelRmse(t) => t,
+            Target::LogRmse(t) | Target::RelRmse(t) | Target::Psnr(t) => t,
         }
     }
 
-    pub fn met_by(&self, m: &Metrics) -> bool {
-        self.error(m) <= self.threshold()
+    pub fn met_by(&self, s: &Scores) -> bool {
+        self.badness(self.value(s)) <= self.badness(self.threshold())
+    }
+
+    /// Whether scoring needs the rendering PSNR.
+    pub fn needs_render(&self) -> bool {
+        matches!(self, Target::Psnr(_))
     }
 
     pub fn name(&self) -> &'static str {
         match self {
             Target::LogRmse(_) => "log RMSE",
             Target::RelRmse(_) => "relative cosine-weighted RMSE",
+            Target::Psnr(_) => "rendering PSNR (dB)",
+        }
+    }
+
+    /// "<=" or ">=".
+    pub fn relation(&self) -> &'static str {
+        match self {
+            Target::Psnr(_) => ">=",
+            _ => "<=",
         }
     }
 }
 
 impl std::str::FromStr for Target {
     type Err = String;
-    /// `log-rmse=0.01` or `rel-rmse=0.05`.
+    /// `log-rmse=0.01`, `rel-rmse=0.05` or `psnr=40`.
     fn from_str(s: &str) -> Result<Self, String> {
         let (name, value) = s
             .split_once('=')
@@ -65,8 +108,9 @@ impl std::str::FromStr for Target {
         match name.trim() {
             "log-rmse" => Ok(Target::LogRmse(v)),
             "rel-rmse" => Ok(Target::RelRmse(v)),
+            "psnr" => Ok(Target::Psnr(v)),
             other => Err(format!(
-                "target {s:?}: unknown metric {other:?} (use log-rmse or rel-rmse)"
+                "target {s:?}: unknown metric {other:?} (use log-rmse, rel-rmse or psnr)"
             )),
         }
     }
@@ -104,31 +148,32 @@ pub fn candidates() -> Vec<Candidate> {
 pub struct Trial {
     pub candidate: Candidate,
     pub params: usize,
-    pub error: f64,
+    /// The target metric's value.
+    pub value: f64,
     pub seconds: f64,
 }
 
 /// Fit candidates in order until one meets the target; returns the index of
 /// the chosen trial (the first that meets it, else the best of all) and
-/// the trials. `fit` returns the candidate's metrics and fit seconds.
+/// the trials. `fit` returns the candidate's scores and fit seconds.
 pub fn smallest_meeting<E>(
     target: Target,
-    mut fit: impl FnMut(Candidate) -> Result<(Metrics, f64), E>,
+    mut fit: impl FnMut(Candidate) -> Result<(Scores, f64), E>,
 ) -> Result<(usize, bool, Vec<Trial>), E> {
     let mut trials = Vec::new();
     for c in candidates() {
-        let (m, seconds) = fit(c)?;
+        let (s, seconds) = fit(c)?;
         trials.push(Trial {
             candidate: c,
             params: c.params(),
-            error: target.error(&m),
+            value: target.value(&s),
             seconds,
         });
-        if target.met_by(&m) {
+        if target.met_by(&s) {
             return Ok((trials.len() - 1, true, trials));
         }
     }
-    Ok((best(&trials), false, trials))
+    Ok((best(target, &trials), false, trials))
 }
 
 /// Fit every candidate within `budget` parameters; returns the index of the
@@ -136,24 +181,29 @@ pub fn smallest_meeting<E>(
 pub fn best_within<E>(
     budget: usize,
     metric: Target,
-    mut fit: impl FnMut(Candidate) -> Result<(Metrics, f64), E>,
+    mut fit: impl FnMut(Candidate) -> Result<(Scores, f64), E>,
 ) -> Result<Option<(usize, Vec<Trial>)>, E> {
     let mut trials = Vec::new();
     for c in candidates().into_iter().filter(|c| c.params() <= budget) {
-        let (m, seconds) = fit(c)?;
+        let (s, seconds) = fit(c)?;
         trials.push(Trial {
             candidate: c,
             params: c.params(),
-            error: metric.error(&m),
+            value: metric.value(&s),
             seconds,
         });
     }
-    Ok((!trials.is_empty()).then(|| (best(&trials), trials)))
+    Ok((!trials.is_empty()).then(|| (best(metric, &trials), trials)))
 }
 
-fn best(trials: &[Trial]) -> usize {
+/// The best trial under the target's metric (the first of equals).
+fn best(target: Target, trials: &[Trial]) -> usize {
     (0..trials.len())
-        .min_by(|&a, &b| trials[a].error.total_cmp(&trials[b].error))
+        .min_by(|&a, &b| {
+            target
+                .badness(trials[a].value)
+                .total_cmp(&target.badness(trials[b].value))
+        })
         .unwrap_or(0)
 }
 
@@ -180,7 +230,7 @@ mod tests {
     #[test]
     fn target_stops_at_the_first_candidate_that_meets_it() {
         // Error falls with parameter count: 1/params.
-        let fit = |c: Candidate| Ok::<_, ()>((metrics(1.0 / c.params() as f64), 1.0));
+        let fit = |c: Candidate| Ok::<_, ()>((Scores::from(metrics(1.0 / c.params() as f64)), 1.0));
         let (i, met, trials) = smallest_meeting(Target::LogRmse(1.0 / 300.0), fit).unwrap();
         assert!(met);
         assert_eq!(trials[i].params, 324);
@@ -195,6 +245,21 @@ mod tests {
         assert!(best_within(100, Target::LogRmse(0.0), fit)
             .unwrap()
             .is_none());
+    }
+
+    #[test]
+    fn psnr_targets_want_more_not_less() {
+        let t = Target::Psnr(40.0);
+        let s = |db: f64| Scores {
+            metrics: metrics(0.0),
+            render_psnr_db: Some(db),
+        };
+        assert!(t.met_by(&s(41.0)));
+        assert!(!t.met_by(&s(39.0)));
+        let fit = |c: Candidate| Ok::<_, ()>((s(c.params() as f64 / 10.0), 1.0));
+        let (i, met, trials) = smallest_meeting(t, fit).unwrap();
+        assert!(met);
+        assert_eq!(trials[i].params, 417);
     }
 
     #[test]

@@ -303,9 +303,22 @@ fn model_selection_records_its_choice_and_refuses_contradictions() {
         "cannot be used with",
     );
     assert_fails(
-        &quick_fit(&input, &out3, &["--target", "psnr=40"]),
+        &quick_fit(&input, &out3, &["--target", "mse=0.1"]),
         "unknown metric",
     );
+    // A rendering-PSNR target: the reference render of the input table is
+    // compared with each candidate's; 5 dB is met by the first.
+    let out4 = dir.path().join("psnr.json");
+    let o = quick_fit(&input, &out4, &["--target", "psnr=5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sel = modelfile::read(&out4)
+        .unwrap()
+        .fit
+        .unwrap()
+        .selection
+        .unwrap();
+    assert_eq!(sel["met"], true);
+    assert!(sel["chosen"]["value"].as_f64().unwrap() >= 5.0, "{sel}");
     assert_fails(
         &quick_fit(&input, &out3, &["--budget", "10"]),
         "no candidate model has that few parameters",

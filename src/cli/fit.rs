@@ -5,7 +5,7 @@ use crate::metrics::{compare_model, Metrics};
 use crate::model::Layout;
 use crate::modelfile::{self, FitInfo, ModelFile};
 use crate::samples::{FitSet, SampleOptions, Weighting};
-use crate::selection::{self, Candidate, Target};
+use crate::selection::{self, Candidate, Scores, Target};
 use crate::solver::{Executor, FitOptions, FitResult, GMethod, SweepReport};
 use clap::Args;
 use npf_data_loaders::{MeasuredSamples, MerlTable};
@@ -113,7 +113,7 @@ pub struct FitArgs {
     #[arg(short, long)]
     pub quiet: bool,
     /// Choose the smallest model (1-3 lobes, 30/45/90 values per table)
-    /// that meets METRIC=VALUE: log-rmse=X or rel-rmse=X.
+    /// that meets METRIC=VALUE: log-rmse=X, rel-rmse=X (at most) or psnr=DB (rendering PSNR, at least).
     #[arg(long, value_name = "METRIC=VALUE", conflicts_with_all = ["lobes", "nodes", "budget", "model"])]
     pub target: Option<Target>,
     /// Choose the model with the lowest error (see --budget-metric) among
@@ -251,13 +251,29 @@ pub fn run(args: FitArgs) -> CliResult {
     args.config.validate()?;
     let samples = load_table(&args.input)?;
     let fitted = match (args.target, args.budget) {
-        (Some(target), _) => select(&samples, &args, Selection::Target(target))?,
+        (Some(target), _) => {
+            // A rendering-PSNR target renders the input table once as the reference.
+            let table = if target.needs_render() {
+                Some(MerlTable::read(&args.input)?)
+            } else {
+                None
+            };
+            let reference = table
+                .as_ref()
+                .map(|t| crate::evaluation::Reference::new(t, &samples, Default::default()));
+            select(
+                &samples,
+                &args,
+                Selection::Target(target),
+                reference.as_ref(),
+            )?
+        }
         (None, Some(budget)) => {
             let metric = match args.budget_metric {
                 BudgetMetric::LogRmse => Target::LogRmse(f64::INFINITY),
                 BudgetMetric::RelRmse => Target::RelRmse(f64::INFINITY),
             };
-            select(&samples, &args, Selection::Budget(budget, metric))?
+            select(&samples, &args, Selection::Budget(budget, metric), None)?
         }
         (None, None) => crate::baselines::fitted(&samples, &args.config, args.model, !args.quiet)?,
     };
@@ -283,20 +299,46 @@ enum Selection {
 
 /// Model selection: fits candidates (see `selection`), keeps the chosen
 /// fit, and records the choice and every trial in the fit record.
-fn select(samples: &MeasuredSamples, args: &FitArgs, how: Selection) -> Result<Fitted, CliError> {
+fn select(
+    samples: &MeasuredSamples,
+    args: &FitArgs,
+    how: Selection,
+    reference: Option<&crate::evaluation::Reference>,
+) -> Result<Fitted, CliError> {
     let mut kept: Vec<Fitted> = Vec::new();
-    let mut fit = |c: Candidate| -> Result<(Metrics, f64), CliError> {
+    let mut fit = |c: Candidate| -> Result<(Scores, f64), CliError> {
         let mut config = args.config.clone();
         config.lobes = c.lobes;
         config.nodes = c.nodes;
         let f = fit_samples(samples, &config, false)?;
+        let render_psnr_db = match reference {
+            Some(r) => Some(
+                r.evaluate_model(config.max_theta, &f.result.model)
+                    .map_err(CliError::Message)?
+                    .0
+                    .render_psnr_db,
+            ),
+            None => None,
+        };
         if !args.quiet {
             eprintln!(
-                "  {} lobes x {} values ({} parameters): log RMSE {:.4e}, relative RMSE {:.4e} ({:.1} s)",
-                c.lobes, c.nodes, c.params(), f.metrics.log_rmse, f.metrics.rel_cos_rmse, f.info.seconds
+                "  {} lobes x {} values ({} parameters): log RMSE {:.4e}, relative RMSE {:.4e}{} ({:.1} s)",
+                c.lobes,
+                c.nodes,
+                c.params(),
+                f.metrics.log_rmse,
+                f.metrics.rel_cos_rmse,
+                render_psnr_db.map_or(String::new(), |p| format!(", rendering PSNR {p:.2} dB")),
+                f.info.seconds
             );
         }
-        let out = (f.metrics, f.info.seconds);
+        let out = (
+            Scores {
+                metrics: f.metrics,
+                render_psnr_db,
+            },
+            f.info.seconds,
+        );
         kept.push(f);
         Ok(out)
     };
@@ -304,16 +346,17 @@ fn select(samples: &MeasuredSamples, args: &FitArgs, how: Selection) -> Result<F
         Selection::Target(target) => {
             if !args.quiet {
                 eprintln!(
-                    "choosing the smallest model with {} <= {}",
+                    "choosing the smallest model with {} {} {}",
                     target.name(),
+                    target.relation(),
                     target.threshold()
                 );
             }
             let (i, met, trials) = selection::smallest_meeting(target, &mut fit)?;
             if !met && !args.quiet {
                 eprintln!(
-                    "warning: no candidate meets {} <= {}; keeping the best ({} parameters, {:.4e})",
-                    target.name(), target.threshold(), trials[i].params, trials[i].error
+                    "warning: no candidate meets {} {} {}; keeping the best ({} parameters, {:.4e})",
+                    target.name(), target.relation(), target.threshold(), trials[i].params, trials[i].value
                 );
             }
             let record = serde_json::json!({
