@@ -34,8 +34,9 @@ fn main() {
     print!("| material |");
     for t in &targets {
         print!(
-            " {} <= {}: chosen (params) | error reached |",
+            " {} {} {}: chosen (params) | reached |",
             t.name(),
+            t.relation(),
             t.threshold()
         );
     }
