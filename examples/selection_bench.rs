@@ -77,13 +77,17 @@ fn main() {
             };
             let (i, met, trials) = smallest_meeting(target, fit).expect("fit");
             let c = trials[i].candidate;
+            let value = if target.needs_render() {
+                format!("{:.2}", trials[i].value)
+            } else {
+                format!("{:.3e}", trials[i].value)
+            };
             print!(
-                " {}{} lobes x {} ({}) | {:.3e} |",
+                " {}{} lobes x {} ({}) | {value} |",
                 if met { "" } else { "not met; best: " },
                 c.lobes,
                 c.nodes,
                 trials[i].params,
-                trials[i].value
             );
         }
         println!(" {} | {:.0} |", memo.len(), t0.elapsed().as_secs_f64());

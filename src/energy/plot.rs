@@ -5,22 +5,13 @@
 use super::albedo::AlbedoTable;
 use super::compensation::FurnacePoint;
 use super::fit::{fit_avg, seed_fit};
+use crate::charts::FONT_CANDIDATES;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::f64::consts::PI;
 
 /// Image size in pixels.
 pub const SIZE: (u32, u32) = (1500, 480);
-
-/// Where fonts usually live; the first one found is used.
-const FONT_CANDIDATES: &[&str] = &[
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/Library/Fonts/Arial.ttf",
-    "C:\\Windows\\Fonts\\arial.ttf",
-];
 
 /// Registers a TrueType font as plotters' "sans-serif" (plotters built with
 /// ab_glyph has no font of its own). `explicit` wins over the usual places.
