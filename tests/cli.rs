@@ -329,3 +329,82 @@ fn model_selection_records_its_choice_and_refuses_contradictions() {
     );
     assert!(!out3.exists());
 }
+
+#[test]
+fn energy_commands_write_the_seed_format_and_reject_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("E_on.csv");
+    let o = npf(&[
+        "energy",
+        "table",
+        "--model",
+        "oren-nayar",
+        "--res",
+        "8",
+        "-q",
+        "-o",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .map(|l| l.split(',').map(|v| v.trim().parse().unwrap()).collect())
+        .collect();
+    // "mu, alpha, E", mu fastest, alpha = 0 is Lambert (E = 1).
+    assert_eq!(rows.len(), 64);
+    assert!(rows.iter().all(|r| r.len() == 3));
+    assert!(rows[..8]
+        .iter()
+        .all(|r| r[1] == 0.0 && (r[2] - 1.0).abs() < 1e-12));
+    assert_eq!(rows[1][0], 1.0 / 7.0);
+
+    // Never overwrite without --force; the file is left as it was.
+    let again = npf(&[
+        "energy",
+        "table",
+        "--model",
+        "oren-nayar",
+        "-q",
+        "-o",
+        s(&out),
+    ]);
+    assert_fails(&again, "already exists");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
+
+    let bad = dir.path().join("bad.csv");
+    assert_fails(
+        &npf(&["energy", "table", "--res", "1", "-o", s(&bad)]),
+        "--res 1",
+    );
+    assert_fails(
+        &npf(&["energy", "table", "--tol", "NaN", "-o", s(&bad)]),
+        "--tol",
+    );
+    assert_fails(&npf(&["energy", "simulate", "--paths", "1"]), "--paths");
+    assert_fails(&npf(&["energy", "simulate", "--theta", "95"]), "--theta 95");
+    assert_fails(
+        &npf(&[
+            "energy",
+            "plot",
+            "--model",
+            "oren-nayar",
+            "-o",
+            s(&dir.path().join("x.gif")),
+        ]),
+        ".svg or .png",
+    );
+    assert_fails(&npf(&["energy", "furnace", "--bogus"]), "--bogus");
+    assert!(!bad.exists());
+
+    let o = npf(&["energy", "furnace", "--model", "oren-nayar", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let line = String::from_utf8_lossy(&o.stdout).into_owned();
+    let err: f64 = line
+        .split("= ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no error in {line:?}"));
+    assert!(err < 1e-3, "{line}");
+}
