@@ -291,7 +291,8 @@ fn d_monotone_from(set: &FitSet, deg: Option<f64>) -> usize {
 }
 
 /// x + beta (x - old), clamped at 0, for every table (both in canonical
-/// form); D tails are projected back onto non-increasing ones.
+/// form); D may not exceed x's largest D value, and D tails are projected
+/// back onto non-increasing ones.
 fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> Factors {
     let mv = |a: f64, b: f64| (a + beta * (a - b)).max(0.0);
     let tab = |a: &Vec<f64>, b: &Vec<f64>| {
@@ -310,6 +311,13 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
         d: (0..lobes)
             .map(|m| {
                 let mut d = tab(&x.d[m], &old.d[m]);
+                // D and G trade off freely where G is nearly 0 (D G G is all
+                // the data sees); extrapolating along that valley would grow
+                // D without bound, so the step may not raise D's maximum.
+                let top = x.d[m].iter().cloned().fold(0.0, f64::max);
+                for v in d.iter_mut() {
+                    *v = v.min(top);
+                }
                 for k in monotone_from.max(1)..d.len() {
                     d[k] = d[k].min(d[k - 1]);
                 }
@@ -338,5 +346,42 @@ pub fn gaussian_smooth(t: &mut [f64], sigma: f64) {
             }
         }
         *out = acc / wsum;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Layout;
+
+    #[test]
+    fn extrapolation_never_raises_the_largest_d_value() {
+        // A D cell growing while G shrinks (the flat D x G valley): the
+        // extrapolated step must not carry it past the current maximum.
+        let layout = Layout::isotropic(30);
+        let mk = |d: Vec<f64>, g: Vec<f64>| Factors {
+            layout,
+            diffuse: [0.1; 3],
+            s: vec![[1.0; 3]],
+            d: vec![d],
+            g: vec![g],
+            f: std::array::from_fn(|_| vec![1.0; 30]),
+        };
+        let mut d_old = vec![1.0; 30];
+        let mut d_new = vec![1.0; 30];
+        d_old[20] = 0.5;
+        d_new[20] = 0.9;
+        d_new[25] = 1.5; // the current maximum, and still growing
+        d_old[25] = 1.0;
+        let (g_old, g_new) = (vec![0.5; 30], vec![0.25; 30]);
+        let x = mk(d_new.clone(), g_new);
+        let old = mk(d_old, g_old);
+        let e = extrapolate(&x, &old, 4.0, usize::MAX);
+        let top = d_new.iter().cloned().fold(0.0, f64::max);
+        assert!(e.d[0].iter().all(|&v| v <= top), "{:?}", e.d[0]);
+        // Cells below the maximum still move: 0.9 + 4 (0.9 - 0.5) capped at 1.5.
+        assert_eq!(e.d[0][20], 1.5);
+        // G extrapolates freely, clamped at 0.
+        assert!(e.g[0].iter().all(|&v| v == 0.0));
     }
 }
