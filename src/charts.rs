@@ -15,7 +15,7 @@ fn e<T: std::fmt::Debug>(x: T) -> String {
 }
 
 /// Where fonts usually live; the first usable one is registered.
-pub const FONT_CANDIDATES: &[&str] = &[
+const FONT_CANDIDATES: &[&str] = &[
     "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
     "/usr/share/fonts/TTF/DejaVuSans.ttf",
     "/usr/share/fonts/dejavu/DejaVuSans.ttf",
