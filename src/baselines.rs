@@ -20,8 +20,9 @@
 //!   log-spaced scan followed by golden-section search on log alpha. Stored
 //!   as a one-lobe factor model with these factors tabulated on the default
 //!   layout (the analytic parameters are kept in the file's provenance).
+//!
+//! Both are fitted through [`crate::fit::fit`] (`ModelKind` picks the model).
 
-use crate::cli::fit::FitConfig;
 use crate::interp::Axis;
 use crate::model::{Layout, Lobe, Model};
 use crate::samples::{FitSet, SampleOptions};
@@ -32,38 +33,6 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::time::Instant;
-
-/// Which model a fit produces.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum ModelKind {
-    /// The shared-factor model (1 to 3 lobes, `--lobes`).
-    Factor,
-    /// Bagher et al.'s Independent-G model: one lobe, per-channel D, F, G (816 parameters).
-    IndependentG,
-    /// Analytic GGX + Lambert with Schlick Fresnel (10 parameters).
-    Ggx,
-}
-
-impl ModelKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            ModelKind::Factor => "factor",
-            ModelKind::IndependentG => "independent-g",
-            ModelKind::Ggx => "ggx",
-        }
-    }
-
-    /// The number of free parameters the model really has (the stored form
-    /// may hold more: structural zeros or tabulated analytic factors).
-    pub fn effective_params(self, layout: &Layout, lobes: usize) -> usize {
-        match self {
-            ModelKind::Factor => layout.param_count(lobes),
-            ModelKind::IndependentG => 3 * (2 + layout.d.len() + layout.f.len() + layout.g.len()),
-            ModelKind::Ggx => 10,
-        }
-    }
-}
 
 /// Samples whose three channels all hold channel `c` of the input.
 pub fn channel_samples(samples: &MeasuredSamples, c: usize) -> MeasuredSamples {
@@ -421,154 +390,10 @@ pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxF
     })
 }
 
-/// Fit any model kind with a fit configuration (`config.lobes` applies to
-/// the factor model only). The observer sees every sweep (of every channel
-/// for Independent-G; none for GGX).
-pub fn fit_kind(
-    samples: &MeasuredSamples,
-    config: &FitConfig,
-    kind: ModelKind,
-    observer: &mut dyn FnMut(usize, &SweepReport),
-) -> Result<(FitResult, Option<GgxParams>), String> {
-    let layout = Layout::default();
-    let so = config.sample_options();
-    match kind {
-        ModelKind::Factor => {
-            let set = FitSet::build(samples, layout, so).map_err(|e| e.to_string())?;
-            let mut obs = |r: &SweepReport| observer(0, r);
-            Ok((
-                Executor::new(&set, config.fit_options())
-                    .observe(&mut obs)
-                    .run()?,
-                None,
-            ))
-        }
-        ModelKind::IndependentG => Ok((
-            fit_independent_g(samples, layout, so, config.fit_options(), observer)?,
-            None,
-        )),
-        ModelKind::Ggx => {
-            let fit = fit_ggx(samples, so)?;
-            let model = fit.params.to_model(layout);
-            Ok((
-                FitResult {
-                    factors: crate::solver::Factors::from_model(&model),
-                    model,
-                    initial_objective: fit.objective,
-                    objective: fit.objective,
-                    history: Vec::new(),
-                    converged: true,
-                    seconds: fit.seconds,
-                },
-                Some(fit.params),
-            ))
-        }
-    }
-}
-
 /// A MERL table of an analytic GGX + Lambert BRDF (for tests and demos).
 pub fn ggx_table(p: &GgxParams) -> MerlTable {
     MerlTable::from_fn(|th, td, pd| {
         let a = npf_data_loaders::geometry::Angles::from_half_diff(th, 0.0, td, pd);
         (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| p.eval_angles(&a))
     })
-}
-
-/// Fit any model kind as `npf fit` does: in a pool of `config.threads`
-/// threads, with the provenance (the kind, its effective parameter count
-/// and, for GGX, the analytic parameters go into `FitInfo::selection`) and
-/// errors against the input.
-pub fn fitted(
-    samples: &MeasuredSamples,
-    config: &FitConfig,
-    kind: ModelKind,
-    progress: bool,
-) -> Result<crate::cli::fit::Fitted, crate::cli::CliError> {
-    use crate::cli::CliError;
-    if kind == ModelKind::Factor {
-        let mut f = crate::cli::fit::fit_samples(samples, config, progress)?;
-        f.info.selection = Some(selection(kind, config.lobes, None));
-        return Ok(f);
-    }
-    let opts = config.fit_options();
-    if kind == ModelKind::IndependentG {
-        FitOptions { lobes: 1, ..opts }
-            .validate()
-            .map_err(CliError::Message)?;
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(config.threads)
-        .build()
-        .map_err(|e| CliError::Message(format!("cannot start {} threads: {e}", config.threads)))?;
-    let threads = pool.current_num_threads();
-    pool.install(|| {
-        let bar = if progress && kind == ModelKind::IndependentG {
-            indicatif::ProgressBar::new(3 * opts.max_sweeps as u64)
-        } else {
-            indicatif::ProgressBar::hidden()
-        };
-        let max = opts.max_sweeps as u64;
-        let mut obs = |c: usize, r: &SweepReport| {
-            bar.set_position(c as u64 * max + r.sweep as u64);
-            bar.set_message(format!("channel {c}, objective {:.6e}", r.objective));
-        };
-        let (result, ggx) = fit_kind(samples, config, kind, &mut obs).map_err(CliError::Message)?;
-        bar.finish_and_clear();
-        let metrics = crate::metrics::compare_model(samples, config.max_theta, &result.model);
-        let info = crate::modelfile::FitInfo {
-            source: samples.source.clone(),
-            npf_version: env!("CARGO_PKG_VERSION").into(),
-            lobes: result.model.lobe_count(),
-            weighting: format!("{:?}", config.weighting).to_lowercase(),
-            epsilon: config.epsilon,
-            max_theta_deg: config.max_theta,
-            max_theta_h_deg: config.max_theta_h,
-            d_monotone_from_deg: opts.d_monotone_from_deg,
-            g_method: if kind == ModelKind::Ggx {
-                "analytic".into()
-            } else {
-                format!("{:?}", config.g_method).to_lowercase()
-            },
-            smooth_g: config.smooth_g,
-            sweeps: result.history.len(),
-            converged: result.converged,
-            objective: result.objective,
-            seconds: result.seconds,
-            threads,
-            samples: metrics.samples,
-            metrics: Some(metrics).filter(crate::metrics::Metrics::is_finite),
-            selection: Some(selection(kind, config.lobes, ggx.as_ref())),
-        };
-        Ok(crate::cli::fit::Fitted {
-            result,
-            info,
-            metrics,
-        })
-    })
-}
-
-/// The provenance note naming the model kind.
-pub fn selection(kind: ModelKind, lobes: usize, ggx: Option<&GgxParams>) -> serde_json::Value {
-    let layout = Layout::default();
-    let mut v = serde_json::json!({
-        "model": kind.name(),
-        "effective_parameters": kind.effective_params(&layout, lobes),
-    });
-    if let Some(p) = ggx {
-        v["ggx"] = serde_json::to_value(p).unwrap_or_default();
-    }
-    v
-}
-
-/// The model kind recorded in a model file's provenance (factor if none).
-pub fn kind_of(info: Option<&crate::modelfile::FitInfo>) -> ModelKind {
-    info.and_then(|i| i.selection.as_ref())
-        .and_then(|s| s.get("model"))
-        .and_then(|m| m.as_str())
-        .and_then(|m| match m {
-            "independent-g" => Some(ModelKind::IndependentG),
-            "ggx" => Some(ModelKind::Ggx),
-            _ => None,
-        })
-        .unwrap_or(ModelKind::Factor)
 }

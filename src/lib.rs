@@ -3,13 +3,21 @@
 //! Data flow, one module per concept:
 //! `npf_data_loaders` (formats) → [`samples`] (weights, stencils) → [`model`]
 //! → [`solver`] (AWLS) → [`modelfile`] (export) / [`sampling`] (renderers).
-//! [`energy`] holds the energy-compensation toolkit.
+//! [`fit`] is the front door (one [`fit::FitConfig`], every model kind);
+//! [`Error`] gathers the library's typed errors. [`energy`] holds the
+//! energy-compensation toolkit.
+//!
+//! Built with `--no-default-features` this is the library alone; the default
+//! `cli` feature adds the `npf` program (`cli`), its progress bars, charts
+//! and PNG output.
 
 pub mod baselines;
-pub mod charts;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod energy;
+pub mod error;
 pub mod evaluation;
+pub mod fit;
 pub mod interp;
 pub mod metrics;
 pub mod model;
@@ -23,4 +31,5 @@ pub mod solver;
 pub mod stability;
 pub mod synth;
 
+pub use error::{Error, Result};
 pub use npf_data_loaders as loaders;

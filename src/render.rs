@@ -232,16 +232,3 @@ pub fn difference_rgb8(reference: &Image, test: &Image, gain: f64) -> Vec<u8> {
         })
         .collect()
 }
-
-/// Encode 8-bit RGB pixels as a PNG file's bytes.
-pub fn encode_png(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>, String> {
-    let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, width, height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc.write_header().map_err(|e| e.to_string())?;
-        w.write_image_data(rgb).map_err(|e| e.to_string())?;
-    }
-    Ok(out)
-}

@@ -6,7 +6,8 @@
 use super::{check_output, CliError, CliResult};
 use crate::evaluation::{Evaluation, Reference};
 use crate::modelfile::{self, Form};
-use crate::render::{difference_rgb8, encode_png, Image, RenderOptions};
+use super::png::encode_png;
+use crate::render::{difference_rgb8, Image, RenderOptions};
 use clap::Args;
 use npf_data_loaders::atomic::write_bytes_atomic;
 use npf_data_loaders::MerlTable;

@@ -2,7 +2,8 @@
 //! GGX + Lambert BRDF as a MERL table, fits it, writes the model in both
 //! forms and its reconstruction, and prints the errors.
 
-use super::fit::{fit_samples, print_summary, FitConfig};
+use super::fit::{fit_with_progress, print_summary, FitFlags};
+use crate::fit::ModelKind;
 use super::{check_output, CliResult};
 use crate::metrics::compare;
 use crate::modelfile::{self, ModelFile};
@@ -17,7 +18,7 @@ pub struct DemoArgs {
     #[arg(short, long, default_value = "demo")]
     pub out_dir: PathBuf,
     #[command(flatten)]
-    pub config: FitConfig,
+    pub config: FitFlags,
     /// Overwrite files left by an earlier run.
     #[arg(long)]
     pub force: bool,
@@ -57,7 +58,9 @@ pub fn run(args: DemoArgs) -> CliResult {
     let table = DEMO_BRDF.table();
     table.write(&paths[0], args.force)?;
     let samples = table.samples(&paths[0].display().to_string());
-    let fitted = fit_samples(&samples, &args.config, !args.quiet)?;
+    let config = args.config.config(ModelKind::Factor);
+    config.validate()?;
+    let fitted = fit_with_progress(&samples, &config, !args.quiet)?;
     let file = ModelFile {
         model: fitted.result.model.clone(),
         fit: Some(fitted.info.clone()),

@@ -1,54 +1,59 @@
 //! `npf fit IN.binary -o MODEL.{json,npfb}`.
 
 use super::{check_output, CliError, CliResult};
-use crate::metrics::{compare_model, Metrics};
-use crate::model::Layout;
-use crate::modelfile::{self, FitInfo, ModelFile};
-use crate::samples::{FitSet, SampleOptions, Weighting};
+use crate::fit::{fit, FitConfig, FitError, Fitted, ModelKind};
+use crate::modelfile::{self, ModelFile};
+use crate::samples::Weighting;
 use crate::selection::{self, Candidate, Scores, Target};
-use crate::solver::{Executor, FitOptions, FitResult, GMethod, SweepReport};
+use crate::solver::{GMethod, SweepReport, MAX_LOBES};
 use clap::Args;
 use npf_data_loaders::{MeasuredSamples, MerlTable};
 use std::path::{Path, PathBuf};
 
-/// Options shared by every command that fits.
+/// The library's defaults, which every flag below shows and falls back to.
+fn defaults() -> FitConfig {
+    FitConfig::default()
+}
+
+/// Options shared by every command that fits: the flags of
+/// [`FitConfig`], with its defaults.
 #[derive(Args, Clone, Debug)]
-pub struct FitConfig {
+pub struct FitFlags {
     /// Specular lobes (1 to 3).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = defaults().lobes)]
     pub lobes: usize,
     /// Values per factor table (D, F, G): 90 is MERL's resolution; fewer
     /// (e.g. 45, 30) give smaller models on the same axes.
-    #[arg(long, default_value_t = 90)]
+    #[arg(long, default_value_t = defaults().nodes)]
     pub nodes: usize,
     /// Residual weighting (see docs/fitting.md).
-    #[arg(long, value_enum, default_value_t = Weighting::Compressive)]
+    #[arg(long, value_enum, default_value_t = defaults().weighting)]
     pub weighting: Weighting,
     /// Floor of the compressive weight (cosine-weighted 1/sr).
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = defaults().epsilon)]
     pub epsilon: f64,
     /// Grazing cut-off: leave out samples with theta_i or theta_o above this (degrees).
-    #[arg(long, default_value_t = 85.0)]
+    #[arg(long, default_value_t = defaults().max_theta)]
     pub max_theta: f64,
     /// D cells above this half angle (degrees) hold the last free cell's value.
-    #[arg(long, default_value_t = 75.0)]
+    #[arg(long, default_value_t = defaults().max_theta_h)]
     pub max_theta_h: f64,
     /// Stop after this many sweeps.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = defaults().max_sweeps)]
     pub max_sweeps: usize,
     /// Stop when a sweep lowers the objective by less than this fraction.
-    #[arg(long, default_value_t = 3e-3)]
+    #[arg(long, default_value_t = defaults().tol)]
     pub tol: f64,
     /// How G control points are updated.
-    #[arg(long, value_enum, default_value_t = GMethod::Cubic)]
+    #[arg(long, value_enum, default_value_t = defaults().g_method)]
     pub g_method: GMethod,
     /// Gaussian smoothing of G after each update (sigma in control points), kept only if it does not raise the objective.
     #[arg(long)]
     pub smooth_g: Option<f64>,
     /// D may not rise with theta_h past this angle (degrees), which stops D
-    /// and G trading scale at grazing angles.
-    #[arg(long, default_value_t = 60.0, conflicts_with = "free_d_tail")]
-    pub d_monotone_from: f64,
+    /// and G trading scale at grazing angles [default: the library's, 60].
+    #[arg(long, conflicts_with = "free_d_tail")]
+    pub d_monotone_from: Option<f64>,
     /// Leave the D tail unconstrained.
     #[arg(long)]
     pub free_d_tail: bool,
@@ -56,44 +61,109 @@ pub struct FitConfig {
     #[arg(long)]
     pub no_accelerate: bool,
     /// Worker threads (0: all cores). Results are identical for any count.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = defaults().threads)]
     pub threads: usize,
 }
 
-impl FitConfig {
-    pub fn sample_options(&self) -> SampleOptions {
-        SampleOptions {
+impl FitFlags {
+    /// The library configuration these flags describe, for `model`.
+    pub fn config(&self, model: ModelKind) -> FitConfig {
+        let base = defaults();
+        FitConfig {
+            model,
+            lobes: self.lobes,
+            nodes: self.nodes,
             weighting: self.weighting,
             epsilon: self.epsilon,
-            max_theta_deg: self.max_theta,
-            max_theta_h_deg: self.max_theta_h,
-        }
-    }
-
-    pub fn validate(&self) -> Result<(), CliError> {
-        if !(4..=90).contains(&self.nodes) {
-            return Err(CliError::Message(format!(
-                "--nodes must be 4 to 90, got {}",
-                self.nodes
-            )));
-        }
-        self.fit_options().validate().map_err(CliError::Message)
-    }
-
-    pub fn fit_options(&self) -> FitOptions {
-        FitOptions {
-            lobes: self.lobes,
+            max_theta: self.max_theta,
+            max_theta_h: self.max_theta_h,
             max_sweeps: self.max_sweeps,
             tol: self.tol,
             g_method: self.g_method,
             smooth_g: self.smooth_g,
-            accelerate: !self.no_accelerate,
-            trace_stages: false,
-            d_monotone_from_deg: (!self.free_d_tail).then_some(self.d_monotone_from),
+            d_monotone_from: if self.free_d_tail {
+                None
+            } else {
+                self.d_monotone_from.or(base.d_monotone_from)
+            },
+            accelerate: base.accelerate && !self.no_accelerate,
+            threads: self.threads,
         }
     }
 }
 
+/// A fit error in terms of the flag that caused it.
+pub fn flag_message(e: &FitError) -> String {
+    match e {
+        FitError::Lobes(n) => format!("--lobes must be 1 to {MAX_LOBES}, got {n}"),
+        FitError::Nodes(n) => format!(
+            "--nodes must be {} to {}, got {n}",
+            crate::fit::NODES.start(),
+            crate::fit::NODES.end()
+        ),
+        FitError::MaxSweeps => "--max-sweeps must be at least 1".into(),
+        FitError::Tol(t) => format!("--tol must be a non-negative number, got {t}"),
+        FitError::DMonotoneFrom(t) => {
+            format!("--d-monotone-from must be 0 to 90 degrees, got {t}")
+        }
+        FitError::SmoothG(s) => format!("--smooth-g must be positive, got {s}"),
+        FitError::Threads { .. } => format!("--threads: {e}"),
+        FitError::Samples(_) | FitError::Solver(_) => e.to_string(),
+    }
+}
+
+/// A progress bar for a fit of `kind` (hidden when `show` is false or the
+/// kind has no sweeps), and the observer that drives it.
+pub fn progress(
+    config: &FitConfig,
+    show: bool,
+) -> (indicatif::ProgressBar, impl FnMut(usize, &SweepReport)) {
+    let parts = match config.model {
+        ModelKind::Factor => 1,
+        ModelKind::IndependentG => 3,
+        ModelKind::Ggx => 0,
+    };
+    let bar = if show && parts > 0 {
+        indicatif::ProgressBar::new((parts * config.max_sweeps) as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    if config.model == ModelKind::Factor {
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} fitting [{bar:30}] {pos}/{len} sweeps  {msg}  {elapsed}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+    }
+    let max = config.max_sweeps as u64;
+    let independent = config.model == ModelKind::IndependentG;
+    let b = bar.clone();
+    let observer = move |c: usize, r: &SweepReport| {
+        b.set_position(c as u64 * max + r.sweep as u64);
+        b.set_message(if independent {
+            format!("channel {c}, objective {:.6e}", r.objective)
+        } else {
+            format!("objective {:.6e} (-{:.1e})", r.objective, r.rel_decrease)
+        });
+    };
+    (bar, observer)
+}
+
+/// Fit with a progress bar (shown when `show` is true).
+pub fn fit_with_progress(
+    samples: &MeasuredSamples,
+    config: &FitConfig,
+    show: bool,
+) -> Result<Fitted, CliError> {
+    let (bar, mut observer) = progress(config, show);
+    let fitted = fit(samples, config, &mut observer)?;
+    bar.finish_and_clear();
+    Ok(fitted)
+}
+
+/// `npf fit`'s arguments.
 #[derive(Args, Debug)]
 pub struct FitArgs {
     /// Measured BRDF (MERL .binary).
@@ -102,10 +172,10 @@ pub struct FitArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
-    pub config: FitConfig,
+    pub config: FitFlags,
     /// Which model to fit: the shared-factor model or a baseline (see docs/evaluation.md).
-    #[arg(long, value_enum, default_value_t = crate::baselines::ModelKind::Factor)]
-    pub model: crate::baselines::ModelKind,
+    #[arg(long, value_enum, default_value_t = defaults().model)]
+    pub model: ModelKind,
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
@@ -125,93 +195,16 @@ pub struct FitArgs {
     pub budget_metric: BudgetMetric,
 }
 
+/// What `--budget` minimises.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
 pub enum BudgetMetric {
+    /// RMSE of log(1 + f cos theta_i).
     LogRmse,
+    /// Relative cosine-weighted RMSE.
     RelRmse,
 }
 
-/// A finished fit with its provenance and errors against the input.
-pub struct Fitted {
-    pub result: FitResult,
-    pub info: FitInfo,
-    pub metrics: Metrics,
-}
-
-/// Fit measured samples with a configuration, with an optional progress bar.
-pub fn fit_samples(
-    samples: &MeasuredSamples,
-    config: &FitConfig,
-    progress: bool,
-) -> Result<Fitted, CliError> {
-    config.validate()?;
-    let opts = config.fit_options();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(config.threads)
-        .build()
-        .map_err(|e| CliError::Message(format!("cannot start {} threads: {e}", config.threads)))?;
-    let threads = pool.current_num_threads();
-    pool.install(|| {
-        let set = FitSet::build(
-            samples,
-            Layout::isotropic(config.nodes),
-            config.sample_options(),
-        )
-        .map_err(|e| CliError::Message(e.to_string()))?;
-        let bar = if progress {
-            indicatif::ProgressBar::new(opts.max_sweeps as u64)
-        } else {
-            indicatif::ProgressBar::hidden()
-        };
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} fitting [{bar:30}] {pos}/{len} sweeps  {msg}  {elapsed}",
-            )
-            .expect("valid template")
-            .progress_chars("=> "),
-        );
-        let mut observer = |r: &SweepReport| {
-            bar.set_position(r.sweep as u64);
-            bar.set_message(format!(
-                "objective {:.6e} (-{:.1e})",
-                r.objective, r.rel_decrease
-            ));
-        };
-        let result = Executor::new(&set, opts)
-            .observe(&mut observer)
-            .run()
-            .map_err(CliError::Message)?;
-        bar.finish_and_clear();
-        let metrics = compare_model(samples, config.max_theta, &result.model);
-        let info = FitInfo {
-            source: samples.source.clone(),
-            npf_version: env!("CARGO_PKG_VERSION").into(),
-            lobes: opts.lobes,
-            weighting: format!("{:?}", config.weighting).to_lowercase(),
-            epsilon: config.epsilon,
-            max_theta_deg: config.max_theta,
-            max_theta_h_deg: config.max_theta_h,
-            d_monotone_from_deg: config.fit_options().d_monotone_from_deg,
-            g_method: format!("{:?}", config.g_method).to_lowercase(),
-            smooth_g: config.smooth_g,
-            sweeps: result.history.len(),
-            converged: result.converged,
-            objective: result.objective,
-            seconds: result.seconds,
-            threads,
-            samples: set.len(),
-            // JSON has no NaN: a relative error against an all-black table is undefined.
-            metrics: Some(metrics).filter(Metrics::is_finite),
-            selection: None,
-        };
-        Ok(Fitted {
-            result,
-            info,
-            metrics,
-        })
-    })
-}
-
+/// The summary `npf fit` and `npf demo` print after a fit.
 pub fn print_summary(f: &Fitted) {
     let m = &f.metrics;
     eprintln!(
@@ -233,6 +226,7 @@ pub fn print_summary(f: &Fitted) {
     );
 }
 
+/// Read a MERL table as samples, refusing one without any valid cell.
 pub fn load_table(path: &Path) -> Result<MeasuredSamples, CliError> {
     let table = MerlTable::read(path)?;
     let samples = table.samples(&path.display().to_string());
@@ -245,10 +239,12 @@ pub fn load_table(path: &Path) -> Result<MeasuredSamples, CliError> {
     Ok(samples)
 }
 
+/// Run `npf fit`.
 pub fn run(args: FitArgs) -> CliResult {
     modelfile::Form::of(&args.output)?;
     check_output(&args.output, args.force)?;
-    args.config.validate()?;
+    let config = args.config.config(args.model);
+    config.validate()?;
     let samples = load_table(&args.input)?;
     let fitted = match (args.target, args.budget) {
         (Some(target), _) => {
@@ -264,6 +260,7 @@ pub fn run(args: FitArgs) -> CliResult {
             select(
                 &samples,
                 &args,
+                &config,
                 Selection::Target(target),
                 reference.as_ref(),
             )?
@@ -273,9 +270,15 @@ pub fn run(args: FitArgs) -> CliResult {
                 BudgetMetric::LogRmse => Target::LogRmse(f64::INFINITY),
                 BudgetMetric::RelRmse => Target::RelRmse(f64::INFINITY),
             };
-            select(&samples, &args, Selection::Budget(budget, metric), None)?
+            select(
+                &samples,
+                &args,
+                &config,
+                Selection::Budget(budget, metric),
+                None,
+            )?
         }
-        (None, None) => crate::baselines::fitted(&samples, &args.config, args.model, !args.quiet)?,
+        (None, None) => fit_with_progress(&samples, &config, !args.quiet)?,
     };
     modelfile::write(
         &args.output,
@@ -302,15 +305,19 @@ enum Selection {
 fn select(
     samples: &MeasuredSamples,
     args: &FitArgs,
+    base: &FitConfig,
     how: Selection,
     reference: Option<&crate::evaluation::Reference>,
 ) -> Result<Fitted, CliError> {
     let mut kept: Vec<Fitted> = Vec::new();
-    let mut fit = |c: Candidate| -> Result<(Scores, f64), CliError> {
-        let mut config = args.config.clone();
-        config.lobes = c.lobes;
-        config.nodes = c.nodes;
-        let f = fit_samples(samples, &config, false)?;
+    let mut try_candidate = |c: Candidate| -> Result<(Scores, f64), CliError> {
+        let config = FitConfig {
+            model: ModelKind::Factor,
+            lobes: c.lobes,
+            nodes: c.nodes,
+            ..base.clone()
+        };
+        let f = fit(samples, &config, &mut |_, _| {})?;
         let render_psnr_db = match reference {
             Some(r) => Some(
                 r.evaluate_model(config.max_theta, &f.result.model)
@@ -352,7 +359,7 @@ fn select(
                     target.threshold()
                 );
             }
-            let (i, met, trials) = selection::smallest_meeting(target, &mut fit)?;
+            let (i, met, trials) = selection::smallest_meeting(target, &mut try_candidate)?;
             if !met && !args.quiet {
                 eprintln!(
                     "warning: no candidate meets {} {} {}; keeping the best ({} parameters, {:.4e})",
@@ -366,7 +373,7 @@ fn select(
             (i, record)
         }
         Selection::Budget(budget, metric) => {
-            let Some((i, trials)) = selection::best_within(budget, metric, &mut fit)? else {
+            let Some((i, trials)) = selection::best_within(budget, metric, &mut try_candidate)? else {
                 return Err(CliError::Message(format!(
                     "--budget {budget}: no candidate model has that few parameters (the smallest has {})",
                     selection::candidates()[0].params()

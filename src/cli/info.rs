@@ -22,7 +22,7 @@ pub fn run(args: InfoArgs) -> CliResult {
         let m = &file.model;
         println!("{}: npf model, valid", path.display());
         println!("  file size      {bytes} bytes");
-        let kind = crate::baselines::kind_of(file.fit.as_ref());
+        let kind = crate::fit::kind_of(file.fit.as_ref());
         println!("  model kind     {}", kind.name());
         println!("  lobes          {}", m.lobe_count());
         println!(

@@ -7,7 +7,8 @@ use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// The two models of the seed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Model {
     /// GGX with uncorrelated Smith masking, F = 1.
     Ggx,

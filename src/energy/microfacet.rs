@@ -7,7 +7,8 @@
 use std::f64::consts::PI;
 
 /// Normal distribution of the microfacets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Ndf {
     Ggx,
     Beckmann,

@@ -9,7 +9,6 @@ pub mod albedo;
 pub mod compensation;
 pub mod fit;
 pub mod microfacet;
-pub mod plot;
 pub mod quad;
 pub mod series;
 pub mod simulate;

@@ -21,7 +21,8 @@ const MAX_HITS: usize = 100_000;
 const CHUNK: usize = 4096;
 
 /// What the microfacets do with light.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Surface {
     /// Mirror microfacets with Schlick Fresnel F0.
     Conductor,

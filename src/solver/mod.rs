@@ -29,7 +29,8 @@ use serde::{Deserialize, Serialize};
 pub const MAX_LOBES: usize = 3;
 
 /// How the G control points are updated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum GMethod {
     /// Exact: the best real root of the cubic derivative (or the bound 0).

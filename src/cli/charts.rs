@@ -1,7 +1,7 @@
 //! The report's charts (plotters), each written as SVG and PNG.
 
-use crate::cli::report::{median, Convergence, Row};
-use crate::cli::{CliError, CliResult};
+use super::report::{median, Convergence, Row};
+use super::{CliError, CliResult};
 use crate::model::Model;
 use npf_data_loaders::atomic::write_bytes_atomic;
 use plotters::coord::Shift;
@@ -63,7 +63,7 @@ fn save_both(
         png(root.clone()).map_err(|m| fail("png", m))?;
         root.present().map_err(|x| fail("png", e(x)))?;
     }
-    let bytes = crate::render::encode_png(size.0, size.1, &buf).map_err(|m| fail("png", m))?;
+    let bytes = super::png::encode_png(size.0, size.1, &buf).map_err(|m| fail("png", m))?;
     write_bytes_atomic(&stem.with_extension("png"), true, &bytes)?;
     Ok(())
 }

@@ -1,0 +1,345 @@
+//! `npf report DATA_DIR -o REPORT_DIR`: fit every configuration on every
+//! MERL table of a folder, evaluate each fit (docs/evaluation.md), and write
+//! a Markdown report, CSV/JSON results, sphere images, factor plots, the
+//! speed-vs-accuracy chart and a convergence chart.
+//!
+//! Jobs (material x configuration) run in parallel, `--jobs` at a time; each
+//! fit and its evaluation run on one thread, so "fit seconds" is one-thread
+//! wall-clock time (other processes on the machine still add noise).
+
+//!
+//! One module per job: [`configs`] (what is compared), [`runner`] (the job
+//! scheduler), [`rows`] (rows.jsonl and the results files), [`convergence`]
+//! (the convergence experiment), [`markdown`] (report.md and the failure
+//! thresholds); the charts are in `cli::charts`.
+
+pub mod configs;
+pub mod convergence;
+pub mod markdown;
+pub mod rows;
+pub mod runner;
+
+pub use configs::{configurations, Configuration};
+pub use convergence::{Checkpoint, Convergence};
+pub use markdown::{failure, median, FAIL_ALBEDO, FAIL_PSNR_DB, TIE_DB};
+pub use rows::Row;
+
+use super::{CliError, CliResult};
+use crate::evaluation::Reference;
+use crate::fit::FitConfig;
+use crate::render::RenderOptions;
+use clap::Args;
+use runner::{io_err, write_file, FactorModels, Plan, Workspace};
+use std::path::PathBuf;
+
+/// `npf report`'s arguments.
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Folder of MERL tables (*.binary).
+    #[arg(required_unless_present = "list")]
+    pub data: Option<PathBuf>,
+    /// Report folder (created; must be empty or absent unless --force).
+    #[arg(short, long, required_unless_present = "list")]
+    pub output: Option<PathBuf>,
+    /// Configurations to run, comma-separated (default: all; see --list).
+    #[arg(long, value_delimiter = ',')]
+    pub configs: Vec<String>,
+    /// Only these materials (file stems), comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub materials: Vec<String>,
+    /// Fits run at the same time (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub jobs: usize,
+    /// Render resolution (pixels square).
+    #[arg(long, default_value_t = 128)]
+    pub res: usize,
+    /// Environment quadrature strata in elevation.
+    #[arg(long, default_value_t = 24)]
+    pub n_theta: usize,
+    /// Override every configuration's sweep limit (quick trial runs).
+    #[arg(long)]
+    pub max_sweeps: Option<usize>,
+    /// Material of the convergence chart (default: gold-metallic-paint if present, else the first).
+    #[arg(long)]
+    pub convergence: Option<String>,
+    /// Skip the convergence chart (it refits three configurations several times).
+    #[arg(long)]
+    pub no_convergence: bool,
+    /// Fit nothing: write the report from REPORT_DIR/rows.jsonl (every fit a
+    /// run finished, e.g. one stopped early), the saved models and
+    /// convergence.json.
+    #[arg(long)]
+    pub from_rows: bool,
+    /// With --from-rows: recompute every measure from the saved models
+    /// (after a change to the measures; fit times and sweeps are kept).
+    #[arg(long, requires = "from_rows")]
+    pub reevaluate: bool,
+    /// List the configurations and exit.
+    #[arg(long)]
+    pub list: bool,
+    /// Write into an existing, non-empty report folder.
+    #[arg(long)]
+    pub force: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Run `npf report`.
+pub fn run(args: ReportArgs) -> CliResult {
+    let all = configurations();
+    if args.list {
+        for c in &all {
+            println!("{:<16} {:>4} parameters  {}", c.name, c.params(), c.what);
+        }
+        return Ok(());
+    }
+    let (Some(data_dir), Some(out)) = (args.data.clone(), args.output.clone()) else {
+        return Err(CliError::Message(
+            "report needs DATA_DIR and -o REPORT_DIR".into(),
+        ));
+    };
+    let out = &out;
+    let configs: Vec<Configuration> = if args.configs.is_empty() {
+        all.clone()
+    } else {
+        let mut v = Vec::new();
+        for name in &args.configs {
+            match all.iter().find(|c| c.name == name) {
+                Some(c) => v.push(c.clone()),
+                None => {
+                    return Err(CliError::Message(format!(
+                        "unknown configuration {name:?} (npf report --list names them)"
+                    )))
+                }
+            }
+        }
+        v
+    };
+    if !(1..=4096).contains(&args.res) || !(1..=1024).contains(&args.n_theta) {
+        return Err(CliError::Message(
+            "--res must be 1 to 4096 and --n-theta 1 to 1024".into(),
+        ));
+    }
+    if args.max_sweeps == Some(0) {
+        return Err(CliError::Message("--max-sweeps must be at least 1".into()));
+    }
+    // Materials.
+    let entries = std::fs::read_dir(&data_dir).map_err(|e| io_err(&data_dir, e))?;
+    let mut materials: Vec<(String, PathBuf)> = Vec::new();
+    for e in entries {
+        let p = e.map_err(|e| io_err(&data_dir, e))?.path();
+        if p.extension().and_then(|x| x.to_str()) == Some("binary") {
+            let stem = p
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("?")
+                .to_string();
+            if args.materials.is_empty() || args.materials.contains(&stem) {
+                materials.push((stem, p));
+            }
+        }
+    }
+    materials.sort();
+    if materials.is_empty() {
+        return Err(CliError::Message(format!(
+            "{}: no MERL tables (*.binary){}",
+            data_dir.display(),
+            if args.materials.is_empty() {
+                ""
+            } else {
+                " matching --materials"
+            }
+        )));
+    }
+    // Output folder.
+    if out.exists() {
+        let non_empty = std::fs::read_dir(out)
+            .map_err(|e| io_err(out, e))?
+            .next()
+            .is_some();
+        if non_empty && !args.force && !args.from_rows {
+            return Err(CliError::Message(format!(
+                "{}: already exists and is not empty (pass --force to write into it)",
+                out.display()
+            )));
+        }
+    }
+    for (m, _) in &materials {
+        std::fs::create_dir_all(out.join(m)).map_err(|e| io_err(out, e))?;
+    }
+    let render_opts = RenderOptions {
+        res: args.res,
+        n_theta: args.n_theta,
+    };
+    let threads = if args.jobs == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        args.jobs
+    };
+    let ws = Workspace::new(&materials, out, render_opts);
+    let jobs = runner::job_order(&configs, materials.len());
+    // Convergence runs.
+    let conv_material = if args.no_convergence {
+        None
+    } else {
+        let want = args
+            .convergence
+            .clone()
+            .unwrap_or_else(|| "gold-metallic-paint".into());
+        materials
+            .iter()
+            .position(|(m, _)| *m == want)
+            .or_else(|| args.convergence.is_none().then_some(0))
+            .map(Some)
+            .ok_or_else(|| {
+                CliError::Message(format!("--convergence: no material named {want:?}"))
+            })?
+    };
+    let conv_configs: Vec<&Configuration> = all
+        .iter()
+        .filter(|c| convergence::CONFIGS.contains(&c.name))
+        .collect();
+    let bar = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(
+            (jobs.len() + conv_material.map_or(0, |_| conv_configs.len())) as u64,
+        )
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} report [{bar:30}] {pos}/{len} fits  {msg}  {elapsed} (eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let mut factor_models: FactorModels = Default::default();
+    let t0 = std::time::Instant::now();
+    let (mut rows, conv_v) = if args.from_rows {
+        (Vec::new(), Vec::new())
+    } else {
+        let plan = Plan {
+            jobs,
+            configs: &configs,
+            convergence: conv_material.map(|m| (m, conv_configs.clone())),
+            max_sweeps: args.max_sweeps,
+        };
+        runner::run_all(&ws, &plan, threads, &bar, &factor_models)?
+    };
+    let mut conv_loaded = None;
+    if args.from_rows {
+        let path = out.join("rows.jsonl");
+        for row in rows::read(&path)? {
+            let known = materials.iter().any(|m| m.0 == row.material)
+                && configs.iter().any(|c| c.name == row.config);
+            if known {
+                rows.retain(|r| !(r.material == row.material && r.config == row.config));
+                rows.push(row);
+            }
+        }
+        if args.reevaluate {
+            let max_theta = FitConfig::default().max_theta;
+            for (m, material) in materials.iter().enumerate() {
+                let md = ws
+                    .load(m)
+                    .as_ref()
+                    .map_err(|e| CliError::Message(e.clone()))?;
+                let reference = Reference {
+                    table: &md.table,
+                    samples: &md.samples,
+                    image: md.image.clone(),
+                    render: render_opts,
+                };
+                for r in rows.iter_mut().filter(|r| r.material == material.0) {
+                    let p = out.join(&r.material).join(format!("{}.json", r.config));
+                    if let Ok(f) = crate::modelfile::read(&p) {
+                        r.eval = Some(
+                            reference
+                                .evaluate_model(max_theta, &f.model)
+                                .map_err(CliError::Message)?
+                                .0,
+                        );
+                    }
+                }
+                bar.inc(1);
+            }
+            rows::rewrite(&out.join("rows.jsonl"), &rows)?;
+        }
+        let models = factor_models
+            .get_mut()
+            .map_err(|_| CliError::Message("a worker failed".into()))?;
+        for r in &rows {
+            if r.config == "sf-3" || r.config == "independent-g" {
+                let p = out.join(&r.material).join(format!("{}.json", r.config));
+                let m = materials.iter().position(|m| m.0 == r.material);
+                if let (Ok(f), Some(m)) = (crate::modelfile::read(&p), m) {
+                    models.push((m, r.config.clone(), f.model));
+                }
+            }
+        }
+        let cpath = out.join("convergence.json");
+        if let Ok(text) = std::fs::read_to_string(&cpath) {
+            conv_loaded = serde_json::from_str::<Vec<(String, Convergence)>>(&text).ok();
+        }
+    }
+    rows.sort_by_key(|r| {
+        (
+            materials.iter().position(|m| m.0 == r.material),
+            configs.iter().position(|c| c.name == r.config),
+        )
+    });
+    let conv: Option<Vec<(String, Convergence)>> = if args.from_rows {
+        conv_loaded
+    } else {
+        conv_material.map(|_| conv_v)
+    };
+    if let (Some(c), false) = (&conv, args.from_rows) {
+        let json = serde_json::to_string_pretty(c).map_err(|e| CliError::Message(e.to_string()))?;
+        write_file(&out.join("convergence.json"), json.as_bytes())?;
+    }
+    bar.finish_and_clear();
+    let total_seconds = t0.elapsed().as_secs_f64();
+    // Results files.
+    rows::write_results(out, &rows)?;
+    // Charts.
+    let mut chart_notes = Vec::new();
+    if crate::cli::charts::ensure_font() {
+        let names: Vec<&str> = configs.iter().map(|c| c.name).collect();
+        crate::cli::charts::speed_accuracy(out, &rows, &names)?;
+        let models = factor_models
+            .into_inner()
+            .map_err(|_| CliError::Message("a worker failed".into()))?;
+        for (m, config, model) in &models {
+            let path = out.join(&materials[*m].0).join(format!("factors-{config}"));
+            crate::cli::charts::factor_plot(&path, &materials[*m].0, config, model)?;
+        }
+        if let (Some(conv), Some(m)) = (&conv, conv_material) {
+            crate::cli::charts::convergence(out, &materials[m].0, conv)?;
+        }
+    } else {
+        chart_notes.push(
+            "no TrueType font found (looked for DejaVuSans): charts were not drawn".to_string(),
+        );
+    }
+    let md = markdown::markdown(
+        &args,
+        &configs,
+        &materials,
+        &rows,
+        conv.as_deref(),
+        conv_material.map(|m| materials[m].0.as_str()),
+        total_seconds,
+        &chart_notes,
+    );
+    write_file(&out.join("report.md"), md.as_bytes())?;
+    if !args.quiet {
+        eprintln!(
+            "{} fits in {:.0} s; wrote {}",
+            rows.len(),
+            total_seconds,
+            out.join("report.md").display()
+        );
+    }
+    Ok(())
+}

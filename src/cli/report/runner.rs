@@ -1,0 +1,284 @@
+//! The job scheduler: (material x configuration) fits run on plain OS
+//! threads pulling from one queue, each in its own one-thread rayon pool, and
+//! each writes its images and model next to the report.
+
+use super::configs::Configuration;
+use super::convergence::{self, Convergence};
+use super::rows::{self, Row};
+use crate::cli::png::encode_png;
+use crate::cli::{CliError, CliResult};
+use crate::evaluation::Reference;
+use crate::fit::{fit_model, ModelKind};
+use crate::model::Model;
+use crate::render::{Image, RenderOptions};
+use npf_data_loaders::atomic::write_bytes_atomic;
+use npf_data_loaders::{MeasuredSamples, MerlTable};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, OnceLock};
+
+/// A material's table, its samples and its reference rendering.
+pub struct MaterialData {
+    /// The measured table.
+    pub table: MerlTable,
+    /// Its valid samples.
+    pub samples: MeasuredSamples,
+    /// Its rendering (the reference of every fit's PSNR).
+    pub image: Image,
+}
+
+/// The materials of a report run, each loaded (and its reference image
+/// written) on first use by whichever job needs it first.
+pub struct Workspace<'a> {
+    /// (name, path) of every material, sorted.
+    pub materials: &'a [(String, PathBuf)],
+    /// The report folder.
+    pub out: &'a Path,
+    /// Render settings of every image.
+    pub render: RenderOptions,
+    data: Vec<OnceLock<Result<MaterialData, String>>>,
+}
+
+impl<'a> Workspace<'a> {
+    /// A workspace with nothing loaded yet.
+    pub fn new(materials: &'a [(String, PathBuf)], out: &'a Path, render: RenderOptions) -> Self {
+        Workspace {
+            materials,
+            out,
+            render,
+            data: materials.iter().map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// Material `m`, loaded once.
+    pub fn load(&self, m: usize) -> &Result<MaterialData, String> {
+        self.data[m].get_or_init(|| {
+            let (name, path) = &self.materials[m];
+            let table = MerlTable::read(path).map_err(|e| e.to_string())?;
+            let samples = table.samples(&path.display().to_string());
+            if samples.samples.is_empty() {
+                return Err(format!("{}: no valid samples", path.display()));
+            }
+            let image = Reference::new(&table, &samples, self.render).image;
+            write_png(
+                &self.out.join(name).join("reference.png"),
+                image.res,
+                &image.to_rgb8(),
+            )
+            .map_err(|e| e.to_string())?;
+            Ok(MaterialData {
+                table,
+                samples,
+                image,
+            })
+        })
+    }
+}
+
+/// An I/O error naming its path.
+pub fn io_err(path: &Path, e: std::io::Error) -> CliError {
+    CliError::Message(format!("{}: {e}", path.display()))
+}
+
+/// Write (replacing) a report file atomically.
+pub fn write_file(path: &Path, bytes: &[u8]) -> CliResult {
+    write_bytes_atomic(path, true, bytes)?;
+    Ok(())
+}
+
+/// Write a square 8-bit RGB image as PNG.
+pub fn write_png(path: &Path, image_res: usize, rgb: &[u8]) -> CliResult {
+    let png = encode_png(image_res as u32, image_res as u32, rgb)
+        .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))?;
+    write_file(path, &png)
+}
+
+/// Run `f` in a fresh one-thread rayon pool.
+pub fn one_thread<T: Send>(f: impl FnOnce() -> T + Send) -> Result<T, CliError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| CliError::Message(format!("cannot start a worker thread: {e}")))?;
+    Ok(pool.install(f))
+}
+
+/// The factor models the report plots: (material, configuration, model).
+pub type FactorModels = Mutex<Vec<(usize, String, Model)>>;
+
+/// Fit configuration `c` on material `m`, evaluate it and write its images
+/// and model; a failure is recorded in the row.
+pub fn run_job(
+    ws: &Workspace,
+    m: usize,
+    c: &Configuration,
+    max_sweeps: Option<usize>,
+    factor_models: &FactorModels,
+) -> Row {
+    let (name, _) = &ws.materials[m];
+    let render_opts = ws.render;
+    let mut row = Row {
+        material: name.clone(),
+        config: c.name.into(),
+        params: c.params(),
+        seconds: f64::NAN,
+        sweeps: 0,
+        converged: false,
+        objective: f64::NAN,
+        eval: None,
+        error: None,
+        history: Vec::new(),
+    };
+    let res = one_thread(|| -> Result<(), String> {
+        let md = ws.load(m).as_ref().map_err(|e| e.clone())?;
+        let config = c.fit_config(max_sweeps);
+        let (fit, _) =
+            fit_model(&md.samples, &config, &mut |_, _| {}).map_err(|e| e.to_string())?;
+        row.seconds = fit.seconds;
+        row.sweeps = fit.history.len();
+        row.converged = fit.converged;
+        row.objective = fit.objective;
+        row.history = fit
+            .history
+            .iter()
+            .map(|h| (h.sweep, h.objective, h.elapsed))
+            .collect();
+        let reference = Reference {
+            table: &md.table,
+            samples: &md.samples,
+            image: md.image.clone(),
+            render: render_opts,
+        };
+        let (eval, image) = reference.evaluate_model(config.max_theta, &fit.model)?;
+        let dir = ws.out.join(name);
+        write_png(
+            &dir.join(format!("{}.png", c.name)),
+            image.res,
+            &image.to_rgb8(),
+        )
+        .map_err(|e| e.to_string())?;
+        write_png(
+            &dir.join(format!("{}-diff.png", c.name)),
+            image.res,
+            &crate::render::difference_rgb8(&md.image, &image, crate::cli::compare::DIFF_GAIN),
+        )
+        .map_err(|e| e.to_string())?;
+        let file = crate::modelfile::ModelFile {
+            model: fit.model.clone(),
+            fit: None,
+        };
+        crate::modelfile::write(&dir.join(format!("{}.json", c.name)), &file, true)
+            .map_err(|e| e.to_string())?;
+        if c.kind == ModelKind::Factor && c.name == "sf-3" || c.kind == ModelKind::IndependentG {
+            factor_models
+                .lock()
+                .map_err(|_| "a worker failed".to_string())?
+                .push((m, c.name.to_string(), fit.model.clone()));
+        }
+        row.eval = Some(eval);
+        Ok(())
+    });
+    match res {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => row.error = Some(e),
+        Err(e) => row.error = Some(e.to_string()),
+    }
+    row
+}
+
+/// What to run: the fits, then (optionally) the convergence runs.
+pub struct Plan<'a> {
+    /// (material, configuration index) in run order.
+    pub jobs: Vec<(usize, usize)>,
+    /// The configurations `jobs` index.
+    pub configs: &'a [Configuration],
+    /// The convergence material and configurations, if any.
+    pub convergence: Option<(usize, Vec<&'a Configuration>)>,
+    /// Override of every configuration's sweep limit.
+    pub max_sweeps: Option<usize>,
+}
+
+/// The order of jobs: configuration-major, in priority order, so that a
+/// run stopped early (rows.jsonl keeps every finished fit; --from-rows
+/// reports them) has the main comparisons on every material first.
+pub fn job_order(configs: &[Configuration], materials: usize) -> Vec<(usize, usize)> {
+    let priority = |name: &str| {
+        ["sf-3", "independent-g", "ggx", "sf-1", "sf-2"]
+            .iter()
+            .position(|p| *p == name)
+            .unwrap_or(5)
+    };
+    let mut order: Vec<usize> = (0..configs.len()).collect();
+    order.sort_by_key(|&c| (priority(configs[c].name), c));
+    order
+        .iter()
+        .flat_map(|&c| (0..materials).map(move |m| (m, c)))
+        .collect()
+}
+
+/// Run the plan on `threads` OS threads, appending every finished row to
+/// rows.jsonl. Returns the rows (in completion order) and the convergence
+/// runs (in configuration order). (Outer rayon workers waiting on an inner
+/// pool would steal further jobs and run them all at once, hence plain
+/// threads.)
+pub fn run_all(
+    ws: &Workspace,
+    plan: &Plan,
+    threads: usize,
+    bar: &indicatif::ProgressBar,
+    factor_models: &FactorModels,
+) -> Result<(Vec<Row>, Vec<(String, Convergence)>), CliError> {
+    let jobs = &plan.jobs;
+    let next = AtomicUsize::new(0);
+    let n_conv = plan.convergence.as_ref().map_or(0, |(_, c)| c.len());
+    let done: Mutex<Vec<Row>> = Mutex::new(Vec::new());
+    let conv_done: Mutex<Vec<(usize, String, Convergence)>> = Mutex::new(Vec::new());
+    let rows_log = Mutex::new(());
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::SeqCst);
+                if k < jobs.len() {
+                    let (m, c) = jobs[k];
+                    let row = run_job(ws, m, &plan.configs[c], plan.max_sweeps, factor_models);
+                    bar.inc(1);
+                    bar.set_message(format!(
+                        "{} {}: {}",
+                        row.material,
+                        row.config,
+                        match (&row.eval, &row.error) {
+                            (Some(e), _) =>
+                                format!("{:.1} dB in {:.1} s", e.render_psnr_db, row.seconds),
+                            (_, Some(e)) => format!("failed: {e}"),
+                            _ => String::new(),
+                        }
+                    ));
+                    rows::append(ws.out, &row, &rows_log);
+                    if let Ok(mut d) = done.lock() {
+                        d.push(row);
+                    }
+                } else if k < jobs.len() + n_conv {
+                    let i = k - jobs.len();
+                    let Some((m, configs)) = &plan.convergence else {
+                        break;
+                    };
+                    let c = configs[i];
+                    let r = convergence::run(ws, *m, c, plan.max_sweeps);
+                    bar.inc(1);
+                    if let Ok(mut d) = conv_done.lock() {
+                        d.push((i, c.name.to_string(), r));
+                    }
+                } else {
+                    break;
+                }
+            });
+        }
+    });
+    let rows = done
+        .into_inner()
+        .map_err(|_| CliError::Message("a worker failed".into()))?;
+    let mut conv = conv_done
+        .into_inner()
+        .map_err(|_| CliError::Message("a worker failed".into()))?;
+    conv.sort_by_key(|c| c.0);
+    Ok((rows, conv.into_iter().map(|c| (c.1, c.2)).collect()))
+}

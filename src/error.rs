@@ -1,0 +1,24 @@
+//! The library's error type: every typed error of the library's modules in
+//! one enum, for callers that want a single `Result`. Messages name the
+//! problem (the file, the value); command-line flag names are added by the
+//! `npf` program, never here.
+
+/// Any error of the npf library.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Reading or writing a measured table or a file.
+    #[error(transparent)]
+    Load(#[from] npf_data_loaders::LoadError),
+    /// Reading or writing a model file.
+    #[error(transparent)]
+    ModelFile(#[from] crate::modelfile::ModelFileError),
+    /// Building a fit set from samples.
+    #[error(transparent)]
+    Sample(#[from] crate::samples::SampleError),
+    /// Setting up or running a fit.
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
+}
+
+/// `Result` with the library's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,388 @@
+//! The library's fit entry point: one [`FitConfig`] (whose `Default` is the
+//! only place fit defaults are chosen), one [`fit`] for every [`ModelKind`],
+//! and the [`Fitted`] result with its provenance.
+//!
+//! The `npf` program's flags, the benchmark report and library users all go
+//! through here, so a model fitted by any of them is the same model.
+
+use crate::baselines::{fit_ggx, fit_independent_g, GgxParams};
+use crate::metrics::{compare_model, Metrics};
+use crate::model::Layout;
+use crate::modelfile::FitInfo;
+use crate::samples::{FitSet, SampleError, SampleOptions, Weighting};
+use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, SweepReport, MAX_LOBES};
+use npf_data_loaders::MeasuredSamples;
+use serde::{Deserialize, Serialize};
+
+/// Which model a fit produces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelKind {
+    /// The shared-factor model (1 to 3 lobes, `lobes`).
+    Factor,
+    /// Bagher et al.'s Independent-G model: one lobe, per-channel D, F, G
+    /// (816 parameters at 90 values per table).
+    IndependentG,
+    /// Analytic GGX + Lambert with Schlick Fresnel (10 parameters).
+    Ggx,
+}
+
+impl ModelKind {
+    /// The kebab-case name used on the command line and in model files.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::Factor => "factor",
+            ModelKind::IndependentG => "independent-g",
+            ModelKind::Ggx => "ggx",
+        }
+    }
+
+    /// The number of free parameters the model really has (the stored form
+    /// may hold more: structural zeros or tabulated analytic factors).
+    pub fn effective_params(self, layout: &Layout, lobes: usize) -> usize {
+        match self {
+            ModelKind::Factor => layout.param_count(lobes),
+            ModelKind::IndependentG => 3 * (2 + layout.d.len() + layout.f.len() + layout.g.len()),
+            ModelKind::Ggx => 10,
+        }
+    }
+}
+
+/// Everything a fit is set up with. `FitConfig::default()` holds npf's
+/// defaults (taken from [`SampleOptions::default`] and
+/// [`FitOptions::default`], the solver's own), and the `npf` program's
+/// flags take theirs from it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitConfig {
+    /// Which model to fit.
+    pub model: ModelKind,
+    /// Specular lobes (1 to 3); the factor model's only (Independent-G has
+    /// one lobe per channel, GGX one lobe).
+    pub lobes: usize,
+    /// Values per factor table (D, F, G), 4 to 90: 90 is MERL's resolution;
+    /// fewer give smaller models on the same axes. Every model kind is
+    /// tabulated on this layout.
+    pub nodes: usize,
+    /// Residual weighting (see docs/fitting.md).
+    pub weighting: Weighting,
+    /// Floor of the compressive weight (cosine-weighted 1/sr).
+    pub epsilon: f64,
+    /// Grazing cut-off (degrees): samples with theta_i or theta_o above it
+    /// are left out.
+    pub max_theta: f64,
+    /// D cells above this half angle (degrees) hold the last free cell's value.
+    pub max_theta_h: f64,
+    /// Sweep limit.
+    pub max_sweeps: usize,
+    /// Stop when a sweep lowers the objective by less than this fraction.
+    pub tol: f64,
+    /// How G control points are updated.
+    pub g_method: GMethod,
+    /// Gaussian smoothing of G after each update (sigma in control points),
+    /// kept only if it does not raise the objective.
+    pub smooth_g: Option<f64>,
+    /// D may not rise with theta_h past this angle (degrees); `None` leaves
+    /// the D tail free.
+    pub d_monotone_from: Option<f64>,
+    /// Extrapolation between sweeps (false: plain AWLS).
+    pub accelerate: bool,
+    /// Worker threads (0: all cores). Results are identical for any count.
+    pub threads: usize,
+}
+
+impl Default for FitConfig {
+    fn default() -> Self {
+        let s = SampleOptions::default();
+        let o = FitOptions::default();
+        FitConfig {
+            model: ModelKind::Factor,
+            lobes: o.lobes,
+            nodes: Layout::default().d.len(),
+            weighting: s.weighting,
+            epsilon: s.epsilon,
+            max_theta: s.max_theta_deg,
+            max_theta_h: s.max_theta_h_deg,
+            max_sweeps: o.max_sweeps,
+            tol: o.tol,
+            g_method: o.g_method,
+            smooth_g: o.smooth_g,
+            d_monotone_from: o.d_monotone_from_deg,
+            accelerate: o.accelerate,
+            threads: 0,
+        }
+    }
+}
+
+/// Fewest and most values per factor table.
+pub const NODES: std::ops::RangeInclusive<usize> = 4..=90;
+
+/// Why a fit could not be set up or run. Messages name the problem in the
+/// library's terms; the `npf` program adds its flag names.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// `lobes` outside 1 to [`MAX_LOBES`].
+    #[error("the lobe count must be 1 to {MAX_LOBES}, got {0}")]
+    Lobes(usize),
+    /// `nodes` outside [`NODES`].
+    #[error("the values per factor table must be {min} to {max}, got {0}", min = NODES.start(), max = NODES.end())]
+    Nodes(usize),
+    /// `max_sweeps` is 0.
+    #[error("the sweep limit must be at least 1")]
+    MaxSweeps,
+    /// `tol` negative or not finite.
+    #[error("the tolerance must be a non-negative number, got {0}")]
+    Tol(f64),
+    /// `d_monotone_from` outside 0 to 90 degrees.
+    #[error("the angle D is monotone from must be 0 to 90 degrees, got {0}")]
+    DMonotoneFrom(f64),
+    /// `smooth_g` not positive.
+    #[error("the G smoothing sigma must be positive, got {0}")]
+    SmoothG(f64),
+    /// The worker pool could not start.
+    #[error("cannot start {threads} threads: {source}")]
+    Threads {
+        /// Threads asked for.
+        threads: usize,
+        /// The pool's error.
+        source: rayon::ThreadPoolBuildError,
+    },
+    /// The samples could not be turned into a fit set.
+    #[error(transparent)]
+    Samples(#[from] SampleError),
+    /// The solver (or a baseline fit) failed.
+    #[error("{0}")]
+    Solver(String),
+}
+
+impl FitConfig {
+    /// The layout every model kind is tabulated on (`nodes` values per table).
+    pub fn layout(&self) -> Layout {
+        Layout::isotropic(self.nodes)
+    }
+
+    /// The sample-set options (weighting and cut-offs).
+    pub fn sample_options(&self) -> SampleOptions {
+        SampleOptions {
+            weighting: self.weighting,
+            epsilon: self.epsilon,
+            max_theta_deg: self.max_theta,
+            max_theta_h_deg: self.max_theta_h,
+        }
+    }
+
+    /// The solver options.
+    pub fn fit_options(&self) -> FitOptions {
+        FitOptions {
+            lobes: self.lobes,
+            max_sweeps: self.max_sweeps,
+            tol: self.tol,
+            g_method: self.g_method,
+            smooth_g: self.smooth_g,
+            accelerate: self.accelerate,
+            trace_stages: false,
+            d_monotone_from_deg: self.d_monotone_from,
+        }
+    }
+
+    /// The parameter count of the model this configuration fits.
+    pub fn effective_params(&self) -> usize {
+        self.model.effective_params(&self.layout(), self.lobes)
+    }
+
+    /// Refuse a configuration the solver cannot run, before any work.
+    pub fn validate(&self) -> Result<(), FitError> {
+        if !NODES.contains(&self.nodes) {
+            return Err(FitError::Nodes(self.nodes));
+        }
+        if !(1..=MAX_LOBES).contains(&self.lobes) {
+            return Err(FitError::Lobes(self.lobes));
+        }
+        if self.max_sweeps == 0 {
+            return Err(FitError::MaxSweeps);
+        }
+        if !(self.tol >= 0.0 && self.tol.is_finite()) {
+            return Err(FitError::Tol(self.tol));
+        }
+        if let Some(t) = self.d_monotone_from {
+            if !(0.0..=90.0).contains(&t) {
+                return Err(FitError::DMonotoneFrom(t));
+            }
+        }
+        if let Some(s) = self.smooth_g {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(FitError::SmoothG(s));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A finished fit with its provenance and errors against the input.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// The solver's result (model, objective, history).
+    pub result: FitResult,
+    /// The provenance written into model files.
+    pub info: FitInfo,
+    /// Errors against the input samples within the grazing cut-off.
+    pub metrics: Metrics,
+}
+
+/// What [`fit_model`] produced besides the solver result.
+struct Produced {
+    result: FitResult,
+    ggx: Option<GgxParams>,
+    /// Size of the fit set, where one was built for the whole fit.
+    set_len: Option<usize>,
+}
+
+fn run_kind(
+    samples: &MeasuredSamples,
+    config: &FitConfig,
+    observer: &mut dyn FnMut(usize, &SweepReport),
+) -> Result<Produced, FitError> {
+    config.validate()?;
+    let layout = config.layout();
+    let so = config.sample_options();
+    match config.model {
+        ModelKind::Factor => {
+            let set = FitSet::build(samples, layout, so)?;
+            let mut obs = |r: &SweepReport| observer(0, r);
+            let result = Executor::new(&set, config.fit_options())
+                .observe(&mut obs)
+                .run()
+                .map_err(FitError::Solver)?;
+            Ok(Produced {
+                result,
+                ggx: None,
+                set_len: Some(set.len()),
+            })
+        }
+        ModelKind::IndependentG => Ok(Produced {
+            result: fit_independent_g(samples, layout, so, config.fit_options(), observer)
+                .map_err(FitError::Solver)?,
+            ggx: None,
+            set_len: None,
+        }),
+        ModelKind::Ggx => {
+            let fit = fit_ggx(samples, so).map_err(FitError::Solver)?;
+            let model = fit.params.to_model(layout);
+            Ok(Produced {
+                result: FitResult {
+                    factors: Factors::from_model(&model),
+                    model,
+                    initial_objective: fit.objective,
+                    objective: fit.objective,
+                    history: Vec::new(),
+                    converged: true,
+                    seconds: fit.seconds,
+                },
+                ggx: Some(fit.params),
+                set_len: None,
+            })
+        }
+    }
+}
+
+/// Fit `config.model` in the calling thread pool, without provenance or
+/// error measures (the benchmark report's inner loop). The observer sees
+/// every sweep with the part it belongs to (the channel for Independent-G,
+/// 0 otherwise; GGX has no sweeps). Also returns the analytic parameters of
+/// a GGX fit.
+pub fn fit_model(
+    samples: &MeasuredSamples,
+    config: &FitConfig,
+    observer: &mut dyn FnMut(usize, &SweepReport),
+) -> Result<(FitResult, Option<GgxParams>), FitError> {
+    run_kind(samples, config, observer).map(|p| (p.result, p.ggx))
+}
+
+/// Fit `config.model` to measured samples in a pool of `config.threads`
+/// threads, and record the provenance (including [`selection`]) and the
+/// errors against the input. The observer is as for [`fit_model`] (it runs
+/// inside the pool, hence `Send`).
+pub fn fit(
+    samples: &MeasuredSamples,
+    config: &FitConfig,
+    observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+) -> Result<Fitted, FitError> {
+    config.validate()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(config.threads)
+        .build()
+        .map_err(|source| FitError::Threads {
+            threads: config.threads,
+            source,
+        })?;
+    let threads = pool.current_num_threads();
+    pool.install(|| {
+        let Produced {
+            result,
+            ggx,
+            set_len,
+        } = run_kind(samples, config, observer)?;
+        let metrics = compare_model(samples, config.max_theta, &result.model);
+        let kind = config.model;
+        let info = FitInfo {
+            source: samples.source.clone(),
+            npf_version: env!("CARGO_PKG_VERSION").into(),
+            lobes: if kind == ModelKind::Factor {
+                config.lobes
+            } else {
+                result.model.lobe_count()
+            },
+            weighting: format!("{:?}", config.weighting).to_lowercase(),
+            epsilon: config.epsilon,
+            max_theta_deg: config.max_theta,
+            max_theta_h_deg: config.max_theta_h,
+            d_monotone_from_deg: config.d_monotone_from,
+            g_method: if kind == ModelKind::Ggx {
+                "analytic".into()
+            } else {
+                format!("{:?}", config.g_method).to_lowercase()
+            },
+            smooth_g: config.smooth_g,
+            sweeps: result.history.len(),
+            converged: result.converged,
+            objective: result.objective,
+            seconds: result.seconds,
+            threads,
+            samples: set_len.unwrap_or(metrics.samples),
+            // JSON has no NaN: a relative error against an all-black table is undefined.
+            metrics: Some(metrics).filter(Metrics::is_finite),
+            selection: Some(selection(config, ggx.as_ref())),
+        };
+        Ok(Fitted {
+            result,
+            info,
+            metrics,
+        })
+    })
+}
+
+/// The provenance note naming the model kind and its true parameter count
+/// (on the configuration's layout), with GGX's analytic parameters.
+pub fn selection(config: &FitConfig, ggx: Option<&GgxParams>) -> serde_json::Value {
+    let mut v = serde_json::json!({
+        "model": config.model.name(),
+        "effective_parameters": config.effective_params(),
+    });
+    if let Some(p) = ggx {
+        v["ggx"] = serde_json::to_value(p).unwrap_or_default();
+    }
+    v
+}
+
+/// The model kind recorded in a model file's provenance (factor if none).
+pub fn kind_of(info: Option<&FitInfo>) -> ModelKind {
+    info.and_then(|i| i.selection.as_ref())
+        .and_then(|s| s.get("model"))
+        .and_then(|m| m.as_str())
+        .and_then(|m| match m {
+            "independent-g" => Some(ModelKind::IndependentG),
+            "ggx" => Some(ModelKind::Ggx),
+            _ => None,
+        })
+        .unwrap_or(ModelKind::Factor)
+}
