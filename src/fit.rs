@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ModelKind {
-    /// The shared-factor model (1 to 3 lobes, `lobes`).
+    /// The shared-factor model (1 to 3 lobes).
     Factor,
     /// Bagher et al.'s Independent-G model: one lobe, per-channel D, F, G
     /// (816 parameters at 90 values per table).

@@ -27,6 +27,7 @@ pub enum Target {
 /// What a candidate fit scored.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Scores {
+    /// The candidate's error measures.
     pub metrics: Metrics,
     /// Present when the target needs it.
     pub render_psnr_db: Option<f64>,
@@ -59,12 +60,14 @@ impl Target {
         }
     }
 
+    /// The value the metric must reach.
     pub fn threshold(&self) -> f64 {
         match *self {
             Target::LogRmse(t) | Target::RelRmse(t) | Target::Psnr(t) => t,
         }
     }
 
+    /// Whether a fit's scores meet the target.
     pub fn met_by(&self, s: &Scores) -> bool {
         self.badness(self.value(s)) <= self.badness(self.threshold())
     }
@@ -74,6 +77,7 @@ impl Target {
         matches!(self, Target::Psnr(_))
     }
 
+    /// The metric's name, for messages.
     pub fn name(&self) -> &'static str {
         match self {
             Target::LogRmse(_) => "log RMSE",
@@ -116,18 +120,22 @@ impl std::str::FromStr for Target {
     }
 }
 
+/// A candidate model size.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Candidate {
+    /// Specular lobes.
     pub lobes: usize,
     /// Values per factor table.
     pub nodes: usize,
 }
 
 impl Candidate {
+    /// Its layout (`nodes` values per table).
     pub fn layout(&self) -> Layout {
         Layout::isotropic(self.nodes)
     }
 
+    /// Its parameter count.
     pub fn params(&self) -> usize {
         self.layout().param_count(self.lobes)
     }
@@ -146,10 +154,13 @@ pub fn candidates() -> Vec<Candidate> {
 /// One fitted candidate.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Trial {
+    /// The candidate.
     pub candidate: Candidate,
+    /// Its parameter count.
     pub params: usize,
     /// The target metric's value.
     pub value: f64,
+    /// Fit seconds.
     pub seconds: f64,
 }
 

@@ -25,6 +25,7 @@ type Brdf = Box<dyn Fn(&Angles) -> Option<[f64; 3]> + Sync + Send>;
 /// How cells are lost.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Missing {
+    /// No cell is lost.
     None,
     /// Each cell independently with probability 1/2.
     RandomHalf,
@@ -34,11 +35,15 @@ pub enum Missing {
     Beyond(f64),
 }
 
+/// One stability case: a known BRDF, perhaps noisy or with cells lost.
 pub struct Case {
+    /// Short name.
     pub name: &'static str,
+    /// The true BRDF (None where it is not defined).
     pub truth: Brdf,
     /// Standard deviation of multiplicative log-normal noise (0: none).
     pub noise: f64,
+    /// Which cells are lost.
     pub missing: Missing,
 }
 
@@ -193,21 +198,29 @@ fn gaussian(rng: &mut impl Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
+/// One fit configuration of the stability suite.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config {
+    /// How G is updated.
     pub g_method: GMethod,
+    /// Specular lobes.
     pub lobes: usize,
+    /// Residual weighting.
     pub weighting: Weighting,
 }
 
 /// What one fit did.
 #[derive(Clone, Debug)]
 pub struct Outcome {
+    /// The case's name.
     pub case: String,
+    /// The configuration.
     pub config: Config,
     /// Set when the fit could not start (e.g. no valid sample): the message.
     pub error: Option<String>,
+    /// Whether the fit met its tolerance.
     pub converged: bool,
+    /// Sweeps run.
     pub sweeps: usize,
     /// Largest relative rise of the objective from one stage to the next
     /// (0 when it never rose).
@@ -218,13 +231,17 @@ pub struct Outcome {
     pub max_rise_vs_data: f64,
     /// Largest accepted G change dE (must be < 0); None if none was accepted.
     pub worst_g_step: Option<f64>,
+    /// Whether every parameter is finite.
     pub finite: bool,
+    /// Whether every parameter is non-negative.
     pub non_negative: bool,
     /// "collapsed lobe m" or "lobes m and n duplicate", if any.
     pub degenerate: Option<String>,
     /// Error of the fitted model against the clean truth (theta <= 85 deg).
     pub rel_cos_rmse: f64,
+    /// RMSE of log(1 + f cos theta_i) against the clean truth.
     pub log_rmse: f64,
+    /// Fit seconds.
     pub seconds: f64,
 }
 

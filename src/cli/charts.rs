@@ -157,6 +157,7 @@ fn draw_speed<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, rows: &[Row], na
     Ok(())
 }
 
+/// The speed-vs-accuracy chart (`speed-accuracy.{svg,png}` in `out`): median fit seconds against median rendering PSNR per configuration.
 pub fn speed_accuracy(out: &Path, rows: &[Row], names: &[&str]) -> CliResult {
     save_both(
         &out.join("speed-accuracy"),
@@ -314,6 +315,7 @@ fn draw_factors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, title: &str, m
     Ok(())
 }
 
+/// The factor plot of one model (`stem.{svg,png}`): D, F per channel and G per lobe.
 pub fn factor_plot(stem: &Path, material: &str, config: &str, model: &Model) -> CliResult {
     let title = format!("{material}: {config} factors");
     save_both(
@@ -416,6 +418,7 @@ fn draw_convergence<DB: DrawingBackend>(
     Ok(())
 }
 
+/// The convergence chart (`convergence.{svg,png}` in `out`): objective and rendering PSNR against sweeps and seconds.
 pub fn convergence(out: &Path, material: &str, runs: &[(String, Convergence)]) -> CliResult {
     save_both(
         &out.join("convergence"),

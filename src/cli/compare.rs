@@ -13,6 +13,7 @@ use npf_data_loaders::atomic::write_bytes_atomic;
 use npf_data_loaders::MerlTable;
 use std::path::{Path, PathBuf};
 
+/// `npf compare`'s arguments.
 #[derive(Args, Debug)]
 pub struct CompareArgs {
     /// Reference measured BRDF (MERL .binary).
@@ -39,6 +40,7 @@ pub struct CompareArgs {
     pub force: bool,
 }
 
+/// Gain of the difference images (|reference - test| x this).
 pub const DIFF_GAIN: f64 = 8.0;
 
 /// Write the reference, test and difference images into `dir`.
@@ -64,6 +66,7 @@ pub fn write_images(
     Ok(())
 }
 
+/// Print an evaluation's measures, one per line.
 pub fn print_evaluation(e: &Evaluation) {
     let m = &e.metrics;
     println!(
@@ -92,6 +95,7 @@ pub fn print_evaluation(e: &Evaluation) {
     println!("rendering PSNR      {:.2} dB", e.render_psnr_db);
 }
 
+/// Run `npf compare`.
 pub fn run(args: CompareArgs) -> CliResult {
     if !(args.max_theta > 0.0 && args.max_theta <= 90.0) {
         return Err(CliError::Message(format!(

@@ -12,16 +12,19 @@ use crate::synth::GgxLambert;
 use clap::Args;
 use std::path::PathBuf;
 
+/// `npf demo`'s arguments.
 #[derive(Args, Debug)]
 pub struct DemoArgs {
     /// Folder for the demo's files (created if missing).
     #[arg(short, long, default_value = "demo")]
     pub out_dir: PathBuf,
+    /// How to fit (the `npf fit` options).
     #[command(flatten)]
     pub config: FitFlags,
     /// Overwrite files left by an earlier run.
     #[arg(long)]
     pub force: bool,
+    /// No progress bar or summary.
     #[arg(short, long)]
     pub quiet: bool,
 }
@@ -33,6 +36,7 @@ pub const DEMO_BRDF: GgxLambert = GgxLambert {
     alpha: 0.15,
 };
 
+/// Run `npf demo`.
 pub fn run(args: DemoArgs) -> CliResult {
     let dir = &args.out_dir;
     let names = [

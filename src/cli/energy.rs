@@ -14,6 +14,7 @@ use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
+/// The `npf energy` subcommands.
 #[derive(Subcommand)]
 pub enum EnergyCommand {
     /// Write the albedo table E(mu, alpha) as CSV lines "mu, alpha, E".
@@ -30,6 +31,7 @@ pub enum EnergyCommand {
     Plot(PlotArgs),
 }
 
+/// Run an `npf energy` subcommand.
 pub fn run(cmd: EnergyCommand) -> CliResult {
     match cmd {
         EnergyCommand::Table(a) => run_table(a),
@@ -44,6 +46,7 @@ pub fn run(cmd: EnergyCommand) -> CliResult {
 /// Which table to build; shared by every table-based command.
 #[derive(Args, Debug, Clone)]
 pub struct TableSpec {
+    /// Which BRDF the table is of.
     #[arg(long, value_enum, default_value = "ggx")]
     pub model: Model,
     /// Nodes per axis (default 128 for GGX, 32 for Oren-Nayar).
@@ -54,6 +57,7 @@ pub struct TableSpec {
     pub tol: f64,
 }
 
+/// A required output file.
 #[derive(Args, Debug)]
 pub struct Output {
     /// Output file.
@@ -64,6 +68,7 @@ pub struct Output {
     pub force: bool,
 }
 
+/// An optional output file.
 #[derive(Args, Debug)]
 pub struct OptionalOutput {
     /// Also write the numbers as CSV.
@@ -74,29 +79,38 @@ pub struct OptionalOutput {
     pub force: bool,
 }
 
+/// `npf energy table`'s arguments.
 #[derive(Args, Debug)]
 pub struct TableArgs {
+    /// The table.
     #[command(flatten)]
     pub spec: TableSpec,
+    /// Where to write it.
     #[command(flatten)]
     pub out: Output,
+    /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+/// `npf energy avg`'s arguments.
 #[derive(Args, Debug)]
 pub struct AvgArgs {
+    /// The table.
     #[command(flatten)]
     pub spec: TableSpec,
     /// CSV lines "alpha, E_avg".
     #[command(flatten)]
     pub out: OptionalOutput,
+    /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+/// `npf energy furnace`'s arguments.
 #[derive(Args, Debug)]
 pub struct FurnaceArgs {
+    /// The table.
     #[command(flatten)]
     pub spec: TableSpec,
     /// Number of evenly spaced alpha in [0, 1] (default 2·res − 1: the
@@ -106,14 +120,18 @@ pub struct FurnaceArgs {
     /// CSV lines "alpha, single, compensation, sum".
     #[command(flatten)]
     pub out: OptionalOutput,
+    /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+/// `npf energy simulate`'s arguments.
 #[derive(Args, Debug)]
 pub struct SimulateArgs {
+    /// Conductor or diffuse microsurface.
     #[arg(long, value_enum, default_value = "conductor")]
     pub surface: Surface,
+    /// Normal distribution of the microsurface.
     #[arg(long, value_enum, default_value = "ggx")]
     pub ndf: Ndf,
     /// Roughness values, comma-separated.
@@ -128,15 +146,18 @@ pub struct SimulateArgs {
     /// Walks per (alpha, theta).
     #[arg(long, default_value_t = 100_000)]
     pub paths: usize,
+    /// Random seed (results are reproducible for a seed).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// CSV with one row per (alpha, theta, reflectance).
     #[command(flatten)]
     pub out: OptionalOutput,
+    /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+/// `npf energy tau`'s arguments.
 #[derive(Args, Debug)]
 pub struct TauArgs {
     /// Roughness values, comma-separated.
@@ -155,6 +176,7 @@ pub struct TauArgs {
     /// Walks per (alpha, incidence).
     #[arg(long, default_value_t = 20_000)]
     pub paths: usize,
+    /// Random seed (results are reproducible for a seed).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Only this surface (default: both).
@@ -163,12 +185,15 @@ pub struct TauArgs {
     /// Only this distribution (default: both).
     #[arg(long, value_enum)]
     pub ndf: Option<Ndf>,
+    /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+/// `npf energy plot`'s arguments.
 #[derive(Args, Debug)]
 pub struct PlotArgs {
+    /// The table.
     #[command(flatten)]
     pub spec: TableSpec,
     /// A TrueType font for the labels (default: a system font).
@@ -177,6 +202,7 @@ pub struct PlotArgs {
     /// FILE.svg or FILE.png.
     #[command(flatten)]
     pub out: Output,
+    /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }

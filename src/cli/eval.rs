@@ -6,6 +6,7 @@ use clap::Args;
 use npf_data_loaders::geometry::spherical;
 use std::path::PathBuf;
 
+/// `npf eval`'s arguments.
 #[derive(Args, Debug)]
 pub struct EvalArgs {
     /// Model file (.json or .npfb).
@@ -16,6 +17,7 @@ pub struct EvalArgs {
     pub angles: Vec<f64>,
 }
 
+/// Run `npf eval`.
 pub fn run(args: EvalArgs) -> CliResult {
     if args.angles.len() % 4 != 0 {
         return Err(CliError::Message(format!(

@@ -171,6 +171,7 @@ pub struct FitArgs {
     /// Output model; the extension picks the form (.json or .npfb).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// How to fit.
     #[command(flatten)]
     pub config: FitFlags,
     /// Which model to fit: the shared-factor model or a baseline (see docs/evaluation.md).

@@ -6,12 +6,14 @@ use clap::Args;
 use npf_data_loaders::MerlTable;
 use std::path::PathBuf;
 
+/// `npf info`'s arguments.
 #[derive(Args, Debug)]
 pub struct InfoArgs {
     /// A MERL table (.binary) or a model (.json, .npfb).
     pub file: PathBuf,
 }
 
+/// Run `npf info`.
 pub fn run(args: InfoArgs) -> CliResult {
     let path = &args.file;
     let bytes = std::fs::metadata(path)

@@ -6,6 +6,7 @@ use crate::reconstruct::to_merl;
 use clap::Args;
 use std::path::PathBuf;
 
+/// `npf reconstruct`'s arguments.
 #[derive(Args, Debug)]
 pub struct ReconstructArgs {
     /// Model file (.json or .npfb).
@@ -18,6 +19,7 @@ pub struct ReconstructArgs {
     pub force: bool,
 }
 
+/// Run `npf reconstruct`.
 pub fn run(args: ReconstructArgs) -> CliResult {
     check_output(&args.output, args.force)?;
     let file = modelfile::read(&args.model)?;

@@ -19,6 +19,7 @@ use std::path::PathBuf;
 /// Largest --n accepted (about 100 bytes of CSV each).
 pub const MAX_SAMPLES: u64 = 100_000_000;
 
+/// `npf sample`'s arguments.
 #[derive(Args, Debug)]
 pub struct SampleArgs {
     /// Model file (.json or .npfb).
@@ -127,6 +128,7 @@ fn heat(x: f64) -> [u8; 3] {
     [c(3.0 * x), c(3.0 * x - 1.0), c(3.0 * x - 2.0)]
 }
 
+/// Run `npf sample`.
 pub fn run(args: SampleArgs) -> CliResult {
     if !(args.theta_o.is_finite() && (0.0..90.0).contains(&args.theta_o)) {
         return Err(CliError::Message(format!(
