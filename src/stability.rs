@@ -11,8 +11,9 @@
 //! `examples/stability_report.rs` runs the full grid.
 
 use crate::metrics::compare_model;
-use crate::model::{Layout, Model};
-use crate::samples::{FitSet, SampleOptions, Weighting};
+use crate::fit::FitConfig;
+use crate::model::Model;
+use crate::samples::{FitSet, Weighting};
 use crate::solver::{Executor, FitOptions, GMethod};
 use crate::synth::GgxLambert;
 use npf_data_loaders::geometry::Angles;
@@ -278,11 +279,15 @@ pub fn run(
         log_rmse: f64::NAN,
         seconds: 0.0,
     };
-    let so = SampleOptions {
+    // npf's defaults (FitConfig's) with this configuration's choices.
+    let fc = FitConfig {
+        lobes: config.lobes,
+        g_method: config.g_method,
         weighting: config.weighting,
-        ..Default::default()
+        max_sweeps,
+        ..FitConfig::default()
     };
-    let set = match FitSet::build(data, Layout::default(), so) {
+    let set = match FitSet::build(data, fc.layout(), fc.sample_options()) {
         Ok(s) => s,
         Err(e) => {
             out.error = Some(e.to_string());
@@ -290,11 +295,8 @@ pub fn run(
         }
     };
     let opts = FitOptions {
-        lobes: config.lobes,
-        g_method: config.g_method,
-        max_sweeps,
         trace_stages: true,
-        ..Default::default()
+        ..fc.fit_options()
     };
     let res = match Executor::new(&set, opts).run() {
         Ok(r) => r,
