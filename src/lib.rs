@@ -10,7 +10,7 @@ pub mod charts;
 pub mod cli;
 pub mod energy;
 pub mod evaluation;
-pub mod interp;
+pub mod grid;
 pub mod metrics;
 pub mod model;
 pub mod modelfile;

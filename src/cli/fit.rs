@@ -77,7 +77,9 @@ impl FitConfig {
                 self.nodes
             )));
         }
-        self.fit_options().validate().map_err(CliError::Message)
+        self.fit_options()
+            .validate()
+            .map_err(|e| CliError::Message(e.to_string()))
     }
 
     pub fn fit_options(&self) -> FitOptions {
@@ -90,6 +92,7 @@ impl FitConfig {
             accelerate: !self.no_accelerate,
             trace_stages: false,
             d_monotone_from_deg: (!self.free_d_tail).then_some(self.d_monotone_from),
+            channel_mask: FitOptions::default().channel_mask,
         }
     }
 }
@@ -180,7 +183,7 @@ pub fn fit_samples(
         let result = Executor::new(&set, opts)
             .observe(&mut observer)
             .run()
-            .map_err(CliError::Message)?;
+            .map_err(|e| CliError::Message(e.to_string()))?;
         bar.finish_and_clear();
         let metrics = compare_model(samples, config.max_theta, &result.model);
         let info = FitInfo {
