@@ -412,7 +412,13 @@ mod tests {
         assert_eq!(back, m);
         let wi = [0.3, 0.1, (1.0f64 - 0.1).sqrt()];
         let wo = [-0.5, 0.2, (1.0f64 - 0.29).sqrt()];
-        let rot = |v: [f64; 3], a: f64| [v[0] * a.cos() - v[1] * a.sin(), v[0] * a.sin() + v[1] * a.cos(), v[2]];
+        let rot = |v: [f64; 3], a: f64| {
+            [
+                v[0] * a.cos() - v[1] * a.sin(),
+                v[0] * a.sin() + v[1] * a.cos(),
+                v[2],
+            ]
+        };
         let (a, b) = (m.eval(wo, wi), m.eval(rot(wo, 1.0), rot(wi, 1.0)));
         assert!((a[0] - b[0]).abs() > 1e-3 * a[0], "{a:?} {b:?}");
         let (x, y) = (m.eval(wo, wi), m.eval(wi, wo));

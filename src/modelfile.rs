@@ -248,7 +248,11 @@ pub fn to_binary(model: &Model) -> Vec<u8> {
     let params = model.params();
     let l = model.layout;
     let flat = l.is_isotropic();
-    let (header, per) = if flat { (HEADER_BYTES, 3) } else { (HEADER_BYTES_2D, 5) };
+    let (header, per) = if flat {
+        (HEADER_BYTES, 3)
+    } else {
+        (HEADER_BYTES_2D, 5)
+    };
     let mut out = vec![0u8; header + 4 * params.len()];
     out[0..4].copy_from_slice(MAGIC);
     LE::write_u16(&mut out[4..6], VERSION as u16);

@@ -273,6 +273,7 @@ pub struct FitSet {
     pub g_inc: GIncidence,
     /// Constant part of the objective from merged pairs.
     pub objective_offset: f64,
+    /// What happened to the input samples.
     pub stats: SampleStats,
 }
 

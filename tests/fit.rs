@@ -178,7 +178,9 @@ fn known_anisotropic_model() -> npf::model::Model {
         .map(|(ax, ay, s)| Lobe {
             s,
             d: on_grid(layout.d, &|t, p| aniso_ggx(t, p, ax, ay)),
-            g: on_grid(layout.g, &|t, p| ggx_g1(t, 0.5 * (ax + ay) * (1.0 + 0.3 * p.cos()))),
+            g: on_grid(layout.g, &|t, p| {
+                ggx_g1(t, 0.5 * (ax + ay) * (1.0 + 0.3 * p.cos()))
+            }),
         })
         .collect();
     let m = Model {
@@ -250,7 +252,12 @@ fn anisotropic_layout_is_fitted_by_the_same_executor() {
     for r in &res.history {
         for s in &r.stages {
             let e = s.objective.expect("traced");
-            assert!(e <= prev * (1.0 + 1e-12), "sweep {} {:?}: {prev} -> {e}", r.sweep, s.stage);
+            assert!(
+                e <= prev * (1.0 + 1e-12),
+                "sweep {} {:?}: {prev} -> {e}",
+                r.sweep,
+                s.stage
+            );
             prev = e;
         }
     }

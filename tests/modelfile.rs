@@ -122,7 +122,10 @@ fn anisotropic_models_round_trip_and_bad_layouts_are_refused() {
     let bin = modelfile::to_binary(&model);
     assert_eq!(bin.len(), 29 + 4 * 2010);
     assert_eq!(modelfile::from_binary(&bin, path).unwrap(), model);
-    let file = ModelFile { model: model.clone(), fit: None };
+    let file = ModelFile {
+        model: model.clone(),
+        fit: None,
+    };
     let back = modelfile::from_json(&modelfile::to_json(&file), Path::new("a.json")).unwrap();
     assert_eq!(back.model, model);
     assert_eq!(bits(&back.model), bits(&model));

@@ -14,13 +14,22 @@ pub enum Axis {
     /// MERL's theta_h axis: node k at theta = (k/n)^2 * pi/2, k = 0..n-1
     /// (dense near the specular peak); linear in sqrt(theta) between nodes,
     /// constant past the last node.
-    SqrtAngle { n: usize },
+    SqrtAngle {
+        /// Number of nodes.
+        n: usize,
+    },
     /// Node k at theta = k/n * pi/2, k = 0..n-1 (MERL's 1-degree theta_d
     /// cells for n = 90); linear between nodes, constant past the last node.
-    Uniform { n: usize },
+    Uniform {
+        /// Number of nodes.
+        n: usize,
+    },
     /// n Catmull-Rom control points spanning [0, pi/2] inclusively,
     /// theta_k = k/(n-1) * pi/2, with pbrt's end conditions.
-    CatmullRom { n: usize },
+    CatmullRom {
+        /// Number of control points.
+        n: usize,
+    },
 }
 
 impl Axis {

@@ -168,7 +168,9 @@ mod tests {
         let sum: f64 = st.entries().map(|(_, w)| w).sum();
         assert!((sum - 1.0).abs() < 1e-12);
         let phi = PhiAxis { n: 48 };
-        let pc = phi.stencil(p).apply(&(0..48).map(|k| phi.node(k).cos()).collect::<Vec<_>>());
+        let pc = phi
+            .stencil(p)
+            .apply(&(0..48).map(|k| phi.node(k).cos()).collect::<Vec<_>>());
         assert!((st.apply(&table) - (2.0 * t + pc)).abs() < 1e-12);
         let cr = Grid::plane(Axis::CatmullRom { n: 6 }, 48);
         assert_eq!(cr.stencil_width(), 8);

@@ -28,7 +28,10 @@ impl Default for Stencil {
 impl Stencil {
     /// `len` slots, all of weight 0.
     pub fn empty(len: usize) -> Self {
-        assert!(len <= MAX_SUPPORT, "a stencil has at most {MAX_SUPPORT} slots");
+        assert!(
+            len <= MAX_SUPPORT,
+            "a stencil has at most {MAX_SUPPORT} slots"
+        );
         Stencil {
             len: len as u8,
             idx: [0; MAX_SUPPORT],

@@ -283,8 +283,8 @@ impl NpfBxdf {
         let l = &self.model.layout;
         let lobe = &self.model.lobes[m];
         let d = l.d.theta.stencil(a.theta_h).apply_f32(&lobe.d);
-        let g =
-            l.g.theta.stencil(a.theta_i).apply_f32(&lobe.g) * l.g.theta.stencil(a.theta_o).apply_f32(&lobe.g);
+        let g = l.g.theta.stencil(a.theta_i).apply_f32(&lobe.g)
+            * l.g.theta.stencil(a.theta_o).apply_f32(&lobe.g);
         let fs = l.f.theta.stencil(a.theta_d);
         let spec = d * g / (wi[2] * wo[2]);
         std::array::from_fn(|c| lobe.s[c] as f64 * fs.apply_f32(&self.model.fresnel[c]) * spec)
@@ -593,7 +593,15 @@ fn g_product_bound(model: &Model, g: &[f32]) -> impl Fn(f64) -> f64 {
     const STEPS: usize = 720;
     let step = FRAC_PI_2 / STEPS as f64;
     let gv: Vec<f64> = (0..=STEPS)
-        .map(|k| model.layout.g.theta.stencil(k as f64 * step).apply_f32(g).abs())
+        .map(|k| {
+            model
+                .layout
+                .g
+                .theta
+                .stencil(k as f64 * step)
+                .apply_f32(g)
+                .abs()
+        })
         .collect();
     // suffix[k] = max of gv over [k, STEPS].
     let mut suffix = gv.clone();

@@ -43,9 +43,9 @@ pub fn d_measure(set: &FitSet) -> Vec<f64> {
             }
         }),
         Some(phi) => {
-            let qt = grid
-                .theta
-                .quadrature_weights(|t| if t <= limit { t.cos() * t.sin() } else { 0.0 });
+            let qt =
+                grid.theta
+                    .quadrature_weights(|t| if t <= limit { t.cos() * t.sin() } else { 0.0 });
             let qp = phi.quadrature_weights();
             qt.iter()
                 .flat_map(|a| qp.iter().map(move |b| a * b))
