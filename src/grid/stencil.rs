@@ -199,10 +199,26 @@ impl StencilTable {
 
     #[inline(always)]
     fn apply_n<const N: usize>(&self, j: usize, values: &[f64]) -> f64 {
-        let base = j * N;
-        let idx: &[u32; N] = self.idx[base..base + N].try_into().unwrap();
-        let w: &[f64; N] = self.w[base..base + N].try_into().unwrap();
+        let (idx, w) = self.row::<N>(j);
         sum_slots(idx, w, values)
+    }
+
+    /// Sample j's slots as fixed-size arrays (`N` must equal `width`), for
+    /// loops that dispatch on the width once instead of per sample.
+    #[inline(always)]
+    pub fn row<const N: usize>(&self, j: usize) -> (&[u32; N], &[f64; N]) {
+        debug_assert_eq!(N, self.width);
+        let base = j * N;
+        (
+            self.idx[base..base + N].try_into().unwrap(),
+            self.w[base..base + N].try_into().unwrap(),
+        )
+    }
+
+    /// [`StencilTable::apply`] of a row from [`StencilTable::row`].
+    #[inline(always)]
+    pub fn apply_row<const N: usize>(row: (&[u32; N], &[f64; N]), values: &[f64]) -> f64 {
+        sum_slots(row.0, row.1, values)
     }
 
     /// Sample j's non-zero entries, in slot order.

@@ -108,6 +108,45 @@ impl State {
 
     /// Recompute every cache from the factors (removes incremental drift).
     pub fn refresh(&mut self, set: &FitSet) {
+        // Dispatch on the stencil widths once, so the per-sample loops are
+        // unrolled for the built-in layouts (same arithmetic either way).
+        match (set.d_st.width, set.f_st.width, set.gi_st.width) {
+            (2, 2, 4) => self.refresh_n::<2, 2, 4>(set),
+            (4, 2, 8) => self.refresh_n::<4, 2, 8>(set),
+            _ => self.refresh_any(set),
+        }
+    }
+
+    fn refresh_n<const WD: usize, const WF: usize, const WG: usize>(&mut self, set: &FitSet) {
+        use crate::grid::StencilTable as T;
+        let f = &self.factors;
+        let lobes = f.lobes();
+        self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+            let (d, gi, go) = (
+                set.d_st.row::<WD>(j),
+                set.gi_st.row::<WG>(j),
+                set.go_st.row::<WG>(j),
+            );
+            for m in 0..lobes {
+                c.dv[m] = T::apply_row(d, &f.d[m]);
+                c.gi[m] = T::apply_row(gi, &f.g[m]);
+                c.go[m] = T::apply_row(go, &f.g[m]);
+            }
+            let fr = set.f_st.row::<WF>(j);
+            for ch in 0..3 {
+                c.fv[ch] = T::apply_row(fr, &f.f[ch]);
+            }
+            for ch in 0..3 {
+                let mut v = f.diffuse[ch];
+                for m in 0..lobes {
+                    v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+                }
+                c.r[ch] = v - set.y[j][ch];
+            }
+        });
+    }
+
+    fn refresh_any(&mut self, set: &FitSet) {
         let f = &self.factors;
         let lobes = f.lobes();
         self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
