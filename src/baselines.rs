@@ -447,7 +447,7 @@ pub fn fitted(
     if kind == ModelKind::IndependentG {
         FitOptions { lobes: 1, ..opts }
             .validate()
-            .map_err(|e| CliError::Message(e.to_string()))?;
+            .map_err(|e| CliError::Message(crate::cli::fit::fit_option_message(&e)))?;
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(config.threads)

@@ -79,7 +79,7 @@ impl FitConfig {
         }
         self.fit_options()
             .validate()
-            .map_err(|e| CliError::Message(e.to_string()))
+            .map_err(|e| CliError::Message(fit_option_message(&e)))
     }
 
     pub fn fit_options(&self) -> FitOptions {
@@ -94,6 +94,19 @@ impl FitConfig {
             d_monotone_from_deg: (!self.free_d_tail).then_some(self.d_monotone_from),
             channel_mask: FitOptions::default().channel_mask,
         }
+    }
+}
+
+/// A solver option error in the command line's terms (its flag names).
+pub(crate) fn fit_option_message(e: &crate::solver::FitError) -> String {
+    use crate::solver::{FitError as E, MAX_LOBES};
+    match e {
+        E::Lobes(n) => format!("--lobes must be 1 to {MAX_LOBES}, got {n}"),
+        E::MaxSweeps => "--max-sweeps must be at least 1".into(),
+        E::Tolerance(t) => format!("--tol must be a non-negative number, got {t}"),
+        E::MonotoneFrom(t) => format!("--d-monotone-from must be 0 to 90 degrees, got {t}"),
+        E::SmoothG(s) => format!("--smooth-g must be positive, got {s}"),
+        other => other.to_string(),
     }
 }
 
