@@ -272,3 +272,45 @@ fn anisotropic_layout_is_fitted_by_the_same_executor() {
     let m = compare_model(&samples, 85.0, &res.model);
     eprintln!("anisotropic fit: {m:?}");
 }
+
+/// A per-lobe channel mask holds the masked scales at exactly 0 through the
+/// whole fit (start, d, s solve, gauge, extrapolation), and the objective
+/// still never rises.
+#[test]
+fn masked_scales_stay_exactly_zero() {
+    let truth = known_factor_model(Layout::default(), &[0.05, 0.3]);
+    let samples = thinned(&to_merl(&truth), 9);
+    let mask = [[true, false, true], [false, true, true], [true; 3]];
+    let res = fit(
+        &samples,
+        FitOptions {
+            lobes: 2,
+            max_sweeps: 12,
+            tol: 0.0,
+            channel_mask: mask,
+            ..Default::default()
+        },
+    );
+    for (m, lobe) in res.model.lobes.iter().enumerate() {
+        for c in 0..3 {
+            if !mask[m][c] {
+                assert_eq!(lobe.s[c].to_bits(), 0, "lobe {m} channel {c}");
+            }
+        }
+    }
+    assert!(res.model.lobes[0].s[0] > 0.0 && res.model.lobes[1].s[1] > 0.0);
+    let mut prev = res.initial_objective;
+    for r in &res.history {
+        assert!(r.objective <= prev * (1.0 + 1e-12));
+        prev = r.objective;
+    }
+    let all_masked = FitOptions {
+        lobes: 2,
+        channel_mask: [[true; 3], [false; 3], [true; 3]],
+        ..Default::default()
+    };
+    assert_eq!(
+        all_masked.validate(),
+        Err(npf::solver::FitError::MaskedLobe(1))
+    );
+}
