@@ -127,12 +127,12 @@ impl Incidence {
         let mut weight = vec![0.0; start[cells]];
         let mut has_data = vec![false; cells];
         let mut conflict = vec![false; cells * cells];
-        for j in 0..stencils.len() {
+        for (j, &tw) in total_w.iter().enumerate().take(stencils.len()) {
             for (k, w) in stencils.entries(j) {
                 sample[fill[k]] = j as u32;
                 weight[fill[k]] = w;
                 fill[k] += 1;
-                has_data[k] |= total_w[j] > 0.0;
+                has_data[k] |= tw > 0.0;
                 for (k2, _) in stencils.entries(j) {
                     conflict[k * cells + k2] = true;
                 }
