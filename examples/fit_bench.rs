@@ -99,7 +99,7 @@ fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
         max_sweeps,
         ..Default::default()
     };
-    let res = Executor::new(&set, opts).run()?;
+    let res = Executor::new(&set, opts).run().map_err(|e| e.to_string())?;
     let wall = t0.elapsed().as_secs_f64();
     let m = compare_model(&samples, SampleOptions::default().max_theta_deg, &res.model);
     // Mean milliseconds per sweep in each kind of stage (summed over lobes).
@@ -120,7 +120,7 @@ fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
     let n = res.history.len().max(1) as f64;
     let stages: Vec<String> = ms.iter().map(|v| format!("{:.0}", v / n)).collect();
     Ok(format!(
-        "| {} | {:.2} | {:.2} | {:.2} | {} | {} | {:.4e} | {:.3e} | {:.4} | {:.3e} | {:.0} | {} |",
+        "| {} | {:.2} | {:.2} | {:.2} | {} | {} | {:.17e} | {:.3e} | {:.4} | {:.3e} | {:.0} | {} |",
         set.len(),
         prep,
         res.seconds,

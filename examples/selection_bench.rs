@@ -64,7 +64,7 @@ fn main() {
                     lobes: c.lobes,
                     ..Default::default()
                 };
-                let res = Executor::new(&set, opts).run()?;
+                let res = Executor::new(&set, opts).run().map_err(|e| e.to_string())?;
                 let scores = Scores {
                     metrics: compare_model(&samples, 85.0, &res.model),
                     render_psnr_db: match &reference {

@@ -5,9 +5,9 @@
 //! - **Independent-G** (Bagher et al. 2016): one lobe whose D, F and G are
 //!   separate for each channel: rho_C = d_C + s_C D_C F_C G_C(theta_i)
 //!   G_C(theta_o) / (cos theta_i cos theta_o), 3 x (1 + 1 + 3 x 90) = 816
-//!   parameters. Fitted as three independent one-lobe AWLS fits, each on
-//!   one channel (its values copied into all three channels of the sample
-//!   set, so every solver stage is unchanged). Stored as an ordinary
+//!   parameters. Fitted as one AWLS fit of three lobes with a channel
+//!   mask (lobe C may light channel C only), which separates into the
+//!   three per-channel problems. Stored as an ordinary
 //!   three-lobe factor model whose lobe C has scale s_C in channel C and 0
 //!   in the others (822 numbers, 6 of them structural zeros), so `npf
 //!   reconstruct`, `eval` and `info` read it like any other model.
@@ -23,26 +23,14 @@
 //!
 //! Both are fitted through [`crate::fit::fit`] (`ModelKind` picks the model).
 
-use crate::interp::Axis;
 use crate::model::{Layout, Lobe, Model};
-use crate::samples::{FitSet, SampleOptions};
+use crate::samples::SampleOptions;
 use crate::solver::init::{ggx_d, ggx_g1};
-use crate::solver::{Executor, FitOptions, FitResult, SweepReport};
 use npf_data_loaders::{MeasuredSamples, MerlTable};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::time::Instant;
-
-/// Samples whose three channels all hold channel `c` of the input.
-pub fn channel_samples(samples: &MeasuredSamples, c: usize) -> MeasuredSamples {
-    let mut out = samples.clone();
-    for s in &mut out.samples {
-        s.rgb = [s.rgb[c]; 3];
-    }
-    out.source = format!("{} (channel {c})", samples.source);
-    out
-}
 
 /// The Independent-G model of three one-lobe, single-channel models
 /// (channel 0 of each is used).
@@ -68,77 +56,6 @@ pub fn independent_g_model(per_channel: &[Model; 3]) -> Model {
         fresnel,
         lobes,
     }
-}
-
-/// Fit the Independent-G model: three one-lobe fits with `opts` (its
-/// `lobes` is ignored), one per channel, on the same weighting and cut-off.
-/// The history adds the channels' objectives (each divided by 3, since a
-/// channel's fit counts its values three times) and seconds sweep by sweep.
-pub fn fit_independent_g(
-    samples: &MeasuredSamples,
-    layout: Layout,
-    sample_options: SampleOptions,
-    opts: FitOptions,
-    observer: &mut dyn FnMut(usize, &SweepReport),
-) -> Result<FitResult, String> {
-    let opts = FitOptions { lobes: 1, ..opts };
-    let t0 = Instant::now();
-    let mut results = Vec::with_capacity(3);
-    for c in 0..3 {
-        let one = channel_samples(samples, c);
-        let set = FitSet::build(&one, layout, sample_options).map_err(|e| e.to_string())?;
-        let mut obs = |r: &SweepReport| observer(c, r);
-        results.push(Executor::new(&set, opts).observe(&mut obs).run()?);
-    }
-    let models = [
-        results[0].model.clone(),
-        results[1].model.clone(),
-        results[2].model.clone(),
-    ];
-    let model = independent_g_model(&models);
-    let sweeps = results.iter().map(|r| r.history.len()).max().unwrap_or(0);
-    let mut history = Vec::with_capacity(sweeps);
-    for k in 0..sweeps {
-        let mut objective = 0.0;
-        let mut elapsed = 0.0;
-        let mut prev = 0.0;
-        for r in &results {
-            let last = r.history.len().saturating_sub(1);
-            let h = &r.history[k.min(last)];
-            objective += h.objective / 3.0;
-            elapsed += h.elapsed;
-            prev += if k == 0 {
-                r.initial_objective
-            } else {
-                r.history[(k - 1).min(last)].objective
-            } / 3.0;
-        }
-        // elapsed: the time all three channels need to reach sweep k.
-        history.push(SweepReport {
-            sweep: k + 1,
-            objective,
-            rel_decrease: if prev > 0.0 {
-                (prev - objective) / prev
-            } else {
-                0.0
-            },
-            elapsed,
-            stages: Vec::new(),
-            g_passes: Vec::new(),
-            smoothing_reverted: 0,
-            extrapolated: false,
-            revived: 0,
-        });
-    }
-    Ok(FitResult {
-        factors: crate::solver::Factors::from_model(&model),
-        model,
-        initial_objective: results.iter().map(|r| r.initial_objective / 3.0).sum(),
-        objective: results.iter().map(|r| r.objective / 3.0).sum(),
-        history,
-        converged: results.iter().all(|r| r.converged),
-        seconds: t0.elapsed().as_secs_f64(),
-    })
 }
 
 /// The analytic GGX + Lambert parameters.
@@ -170,8 +87,11 @@ impl GgxParams {
     /// The same BRDF as a one-lobe factor model: d = kd / pi, s = ks / 4,
     /// D = GGX D, G = Smith G1, F_C = Schlick, tabulated on `layout`.
     pub fn to_model(&self, layout: Layout) -> Model {
-        let table = |axis: Axis, f: &dyn Fn(f64) -> f64| -> Vec<f32> {
-            (0..axis.len()).map(|k| f(axis.node(k)) as f32).collect()
+        let table = |grid: crate::grid::Grid, f: &dyn Fn(f64) -> f64| -> Vec<f32> {
+            crate::solver::init::theta_table(grid, f)
+                .into_iter()
+                .map(|v| v as f32)
+                .collect()
         };
         let alpha = self.alpha;
         Model {

@@ -18,6 +18,12 @@ pub enum Error {
     /// Setting up or running a fit.
     #[error(transparent)]
     Fit(#[from] crate::fit::FitError),
+    /// The solver refused its options or start.
+    #[error(transparent)]
+    Solver(#[from] crate::solver::SolverError),
+    /// A model that breaks its layout's rules.
+    #[error(transparent)]
+    Model(#[from] crate::model::ModelError),
 }
 
 /// `Result` with the library's [`Error`].

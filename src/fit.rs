@@ -5,12 +5,15 @@
 //! The `npf` program's flags, the benchmark report and library users all go
 //! through here, so a model fitted by any of them is the same model.
 
-use crate::baselines::{fit_ggx, fit_independent_g, GgxParams};
+use crate::baselines::{fit_ggx, GgxParams};
 use crate::metrics::{compare_model, Metrics};
 use crate::model::Layout;
 use crate::modelfile::FitInfo;
 use crate::samples::{FitSet, SampleError, SampleOptions, Weighting};
-use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, SweepReport, MAX_LOBES};
+use crate::solver::{
+    init, Executor, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
+    INDEPENDENT_CHANNELS,
+};
 use npf_data_loaders::MeasuredSamples;
 use serde::{Deserialize, Serialize};
 
@@ -121,24 +124,9 @@ pub const NODES: std::ops::RangeInclusive<usize> = 4..=90;
 /// library's terms; the `npf` program adds its flag names.
 #[derive(Debug, thiserror::Error)]
 pub enum FitError {
-    /// `lobes` outside 1 to [`MAX_LOBES`].
-    #[error("the lobe count must be 1 to {MAX_LOBES}, got {0}")]
-    Lobes(usize),
     /// `nodes` outside [`NODES`].
     #[error("the values per factor table must be {min} to {max}, got {0}", min = NODES.start(), max = NODES.end())]
     Nodes(usize),
-    /// `max_sweeps` is 0.
-    #[error("the sweep limit must be at least 1")]
-    MaxSweeps,
-    /// `tol` negative or not finite.
-    #[error("the tolerance must be a non-negative number, got {0}")]
-    Tol(f64),
-    /// `d_monotone_from` outside 0 to 90 degrees.
-    #[error("the angle D is monotone from must be 0 to 90 degrees, got {0}")]
-    DMonotoneFrom(f64),
-    /// `smooth_g` not positive.
-    #[error("the G smoothing sigma must be positive, got {0}")]
-    SmoothG(f64),
     /// The worker pool could not start.
     #[error("cannot start {threads} threads: {source}")]
     Threads {
@@ -150,9 +138,12 @@ pub enum FitError {
     /// The samples could not be turned into a fit set.
     #[error(transparent)]
     Samples(#[from] SampleError),
-    /// The solver (or a baseline fit) failed.
+    /// The solver's options or start were refused.
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+    /// The GGX baseline fit failed.
     #[error("{0}")]
-    Solver(String),
+    Baseline(String),
 }
 
 impl FitConfig {
@@ -182,6 +173,7 @@ impl FitConfig {
             accelerate: self.accelerate,
             trace_stages: false,
             d_monotone_from_deg: self.d_monotone_from,
+            channel_mask: FitOptions::default().channel_mask,
         }
     }
 
@@ -190,30 +182,14 @@ impl FitConfig {
         self.model.effective_params(&self.layout(), self.lobes)
     }
 
-    /// Refuse a configuration the solver cannot run, before any work.
+    /// Refuse a configuration the solver cannot run, before any work. The
+    /// solver's own checks ([`FitOptions::validate`]) are the only range
+    /// checks of its options.
     pub fn validate(&self) -> Result<(), FitError> {
         if !NODES.contains(&self.nodes) {
             return Err(FitError::Nodes(self.nodes));
         }
-        if !(1..=MAX_LOBES).contains(&self.lobes) {
-            return Err(FitError::Lobes(self.lobes));
-        }
-        if self.max_sweeps == 0 {
-            return Err(FitError::MaxSweeps);
-        }
-        if !(self.tol >= 0.0 && self.tol.is_finite()) {
-            return Err(FitError::Tol(self.tol));
-        }
-        if let Some(t) = self.d_monotone_from {
-            if !(0.0..=90.0).contains(&t) {
-                return Err(FitError::DMonotoneFrom(t));
-            }
-        }
-        if let Some(s) = self.smooth_g {
-            if !(s > 0.0 && s.is_finite()) {
-                return Err(FitError::SmoothG(s));
-            }
-        }
+        self.fit_options().validate()?;
         Ok(())
     }
 }
@@ -251,22 +227,38 @@ fn run_kind(
             let mut obs = |r: &SweepReport| observer(0, r);
             let result = Executor::new(&set, config.fit_options())
                 .observe(&mut obs)
-                .run()
-                .map_err(FitError::Solver)?;
+                .run()?;
             Ok(Produced {
                 result,
                 ggx: None,
                 set_len: Some(set.len()),
             })
         }
-        ModelKind::IndependentG => Ok(Produced {
-            result: fit_independent_g(samples, layout, so, config.fit_options(), observer)
-                .map_err(FitError::Solver)?,
-            ggx: None,
-            set_len: None,
-        }),
+        ModelKind::IndependentG => {
+            // One fit of the shared solver: lobe C lights channel C only, so
+            // the objective separates per channel and this is the three
+            // per-channel problems solved together, with one history.
+            let opts = FitOptions {
+                lobes: 3,
+                channel_mask: INDEPENDENT_CHANNELS,
+                ..config.fit_options()
+            };
+            let set = FitSet::build(samples, layout, so)?;
+            let alpha = init::start_alphas(1)[0];
+            let start = init::initial_factors_with(layout, &[alpha; 3]);
+            let mut obs = |r: &SweepReport| observer(0, r);
+            let result = Executor::new(&set, opts)
+                .start_from(start)
+                .observe(&mut obs)
+                .run()?;
+            Ok(Produced {
+                result,
+                ggx: None,
+                set_len: Some(set.len()),
+            })
+        }
         ModelKind::Ggx => {
-            let fit = fit_ggx(samples, so).map_err(FitError::Solver)?;
+            let fit = fit_ggx(samples, so).map_err(FitError::Baseline)?;
             let model = fit.params.to_model(layout);
             Ok(Produced {
                 result: FitResult {

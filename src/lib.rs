@@ -18,7 +18,7 @@ pub mod energy;
 pub mod error;
 pub mod evaluation;
 pub mod fit;
-pub mod interp;
+pub mod grid;
 pub mod metrics;
 pub mod model;
 pub mod modelfile;

@@ -7,49 +7,154 @@
 //! stores its parameters as f32: that is what its files hold, so a model
 //! written and read back is the same model, bit for bit.
 
-use crate::interp::{Axis, Stencil};
+use crate::grid::{Axis, Grid, Stencil};
 use npf_data_loaders::geometry::{Angles, Vec3};
 use serde::{Deserialize, Serialize};
 
-/// Where the factor tables' nodes sit. The isotropic layout has 1-D tables;
-/// an anisotropic layout (D, G over (theta, phi)) adds its own variant here
-/// and its own stencils, and the solver, which only sees stencils, is unchanged.
+/// Where the factor tables' nodes sit: one [`Grid`] per factor. The
+/// isotropic layout has 1-D tables; the anisotropic one puts D on
+/// (theta_h, phi_h) and G on (theta, phi) of each direction. The solver
+/// only sees stencils, so it fits either unchanged.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Layout {
-    /// D^m(theta_h).
-    pub d: Axis,
-    /// F_C(theta_d).
-    pub f: Axis,
-    /// G^m(theta_i) and G^m(theta_o).
-    pub g: Axis,
+    /// D^m(theta_h[, phi_h]).
+    pub d: Grid,
+    /// F_C(theta_d[, phi_d]) (1-D in both built-in layouts).
+    pub f: Grid,
+    /// G^m(theta[, phi]) of each direction.
+    pub g: Grid,
+}
+
+/// Why a model (or its layout) is not valid.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// A factor table's grid has too few nodes.
+    #[error("{factor} grid needs at least {min} theta nodes, has {n}")]
+    TooFewNodes {
+        /// "D", "F" or "G".
+        factor: &'static str,
+        /// The least allowed.
+        min: usize,
+        /// What the layout has.
+        n: usize,
+    },
+    /// A periodic phi axis without nodes.
+    #[error("{factor} grid has an empty phi axis")]
+    EmptyPhi {
+        /// "D", "F" or "G".
+        factor: &'static str,
+    },
+    /// A grid larger than model files can describe.
+    #[error("{factor} grid has {n} nodes on an axis, at most 65535 are allowed")]
+    TooManyNodes {
+        /// "D", "F" or "G".
+        factor: &'static str,
+        /// The axis length.
+        n: usize,
+    },
+    /// The lobe count is outside 1 to 255 (or does not match the parameters).
+    #[error("a model needs 1 to 255 specular lobes, got {0}")]
+    Lobes(usize),
+    /// A parameter vector of the wrong length.
+    #[error("{got} parameters for {lobes} lobes, expected {expected}")]
+    ParamCount {
+        /// Parameters given.
+        got: usize,
+        /// Lobes asked for.
+        lobes: usize,
+        /// Parameters the layout needs.
+        expected: usize,
+    },
+    /// A table whose length does not match the layout.
+    #[error("{table} has {got} values, the layout says {expected}")]
+    TableSize {
+        /// Which table ("F channel 1", "lobe 0 D", ...).
+        table: String,
+        /// Its length.
+        got: usize,
+        /// The layout's size.
+        expected: usize,
+    },
+    /// A NaN or infinite parameter.
+    #[error("parameter {0} is not finite")]
+    NotFinite(usize),
+    /// A negative d, s, D or F value.
+    #[error("negative d, s, D or F value")]
+    Negative,
 }
 
 impl Layout {
     /// MERL-aligned layout with `n` values per factor: D on MERL's theta_h
     /// nodes, F on its theta_d nodes, G as Catmull-Rom control points.
+    /// 822 parameters for 3 lobes at n = 90.
     pub fn isotropic(n: usize) -> Self {
         Layout {
-            d: Axis::SqrtAngle { n },
-            f: Axis::Uniform { n },
-            g: Axis::CatmullRom { n },
+            d: Grid::line(Axis::SqrtAngle { n }),
+            f: Grid::line(Axis::Uniform { n }),
+            g: Grid::line(Axis::CatmullRom { n }),
         }
     }
 
+    /// The anisotropic layout of the paper (section 2.2), aligned with UTIA's
+    /// 6 x 48 (theta, phi) grid: D on (theta_h, phi_h), 6 linear theta nodes
+    /// 15 degrees apart times 48 periodic phi nodes (bilinear); G on
+    /// (theta, phi) of each direction, 6 Catmull-Rom control points over
+    /// [0, 90] degrees times 48 linear phi nodes (so G reaches 0 at the
+    /// horizon as in the isotropic model); F on 90 theta_d nodes.
+    /// 3 + 9 + 6 * 48 * 3 * 2 + 90 * 3 = 2010 parameters for 3 lobes.
+    pub fn anisotropic() -> Self {
+        Layout {
+            d: Grid::plane(Axis::Uniform { n: 6 }, 48),
+            f: Grid::line(Axis::Uniform { n: 90 }),
+            g: Grid::plane(Axis::CatmullRom { n: 6 }, 48),
+        }
+    }
+
+    /// Whether every table is 1-D (the model depends on theta_h, theta_d and
+    /// the unordered pair {theta_i, theta_o} only).
+    pub fn is_isotropic(&self) -> bool {
+        self.d.is_1d() && self.f.is_1d() && self.g.is_1d()
+    }
+
+    /// The D stencil of a configuration.
     pub fn d_stencil(&self, a: &Angles) -> Stencil {
-        self.d.stencil(a.theta_h)
+        self.d.stencil(a.theta_h, a.phi_h)
     }
 
+    /// The F stencil of a configuration.
     pub fn f_stencil(&self, a: &Angles) -> Stencil {
-        self.f.stencil(a.theta_d)
+        self.f.stencil(a.theta_d, a.phi_d)
     }
 
-    pub fn g_stencil(&self, theta: f64) -> Stencil {
-        self.g.stencil(theta)
+    /// The G stencil of one direction.
+    pub fn g_stencil(&self, theta: f64, phi: f64) -> Stencil {
+        self.g.stencil(theta, phi)
     }
 
     /// Number of parameters of a model with `lobes` specular lobes.
     pub fn param_count(&self, lobes: usize) -> usize {
         3 + 3 * lobes + lobes * (self.d.len() + self.g.len()) + 3 * self.f.len()
+    }
+
+    /// Checks the grids' sizes: G needs two theta nodes (Catmull-Rom), D and
+    /// F one; phi axes at least one node; every axis at most 65535 nodes.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        for (factor, grid, min) in [("D", self.d, 1), ("F", self.f, 1), ("G", self.g, 2)] {
+            let n = grid.n_theta();
+            if n < min {
+                return Err(ModelError::TooFewNodes { factor, min, n });
+            }
+            if grid.phi.is_some_and(|p| p.n == 0) {
+                return Err(ModelError::EmptyPhi { factor });
+            }
+            if n > u16::MAX as usize || grid.n_phi() > u16::MAX as usize {
+                return Err(ModelError::TooManyNodes {
+                    factor,
+                    n: n.max(grid.n_phi()),
+                });
+            }
+        }
+        Ok(())
     }
 }
 
@@ -59,31 +164,37 @@ impl Default for Layout {
     }
 }
 
+/// One specular lobe: its per-channel scale and its shared D and G tables.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Lobe {
     /// Per-channel scale s_C.
     pub s: [f32; 3],
-    /// D(theta_h) node values.
+    /// D node values on the layout's D grid (row-major theta x phi when 2-D).
     pub d: Vec<f32>,
-    /// G(theta) control points.
+    /// G control points on the layout's G grid (row-major theta x phi when 2-D).
     pub g: Vec<f32>,
 }
 
+/// A fitted model: layout, Lambertian term, Fresnel tables and lobes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Model {
+    /// Where every table's nodes sit.
     pub layout: Layout,
     /// Lambertian term d_C (1/sr).
     pub diffuse: [f32; 3],
     /// F_C(theta_d), one table per channel.
     pub fresnel: [Vec<f32>; 3],
+    /// The specular lobes.
     pub lobes: Vec<Lobe>,
 }
 
 impl Model {
+    /// Number of specular lobes.
     pub fn lobe_count(&self) -> usize {
         self.lobes.len()
     }
 
+    /// Number of parameters ([`Layout::param_count`]).
     pub fn param_count(&self) -> usize {
         self.layout.param_count(self.lobes.len())
     }
@@ -109,13 +220,15 @@ impl Model {
     }
 
     /// Inverse of [`Model::params`].
-    pub fn from_params(layout: Layout, lobes: usize, p: &[f32]) -> Result<Self, String> {
+    pub fn from_params(layout: Layout, lobes: usize, p: &[f32]) -> Result<Self, ModelError> {
+        layout.validate()?;
         let expected = layout.param_count(lobes);
         if p.len() != expected {
-            return Err(format!(
-                "{} parameters for {lobes} lobes, expected {expected}",
-                p.len()
-            ));
+            return Err(ModelError::ParamCount {
+                got: p.len(),
+                lobes,
+                expected,
+            });
         }
         let (nd, ng, nf) = (layout.d.len(), layout.g.len(), layout.f.len());
         let mut it = p.iter().copied();
@@ -144,38 +257,33 @@ impl Model {
 
     /// Checks table sizes and that every parameter is finite; factor tables
     /// may not be negative.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ModelError> {
         let l = &self.layout;
-        if l.g.len() < 2 {
-            return Err("G needs at least two control points".into());
+        l.validate()?;
+        if self.lobes.is_empty() || self.lobes.len() > u8::MAX as usize {
+            return Err(ModelError::Lobes(self.lobes.len()));
         }
-        if l.d.is_empty() || l.f.is_empty() {
-            return Err("empty factor table".into());
-        }
-        if self.lobes.is_empty() {
-            return Err("a model needs at least one specular lobe".into());
-        }
-        for (c, f) in self.fresnel.iter().enumerate() {
-            if f.len() != l.f.len() {
-                return Err(format!(
-                    "F channel {c} has {} values, layout says {}",
-                    f.len(),
-                    l.f.len()
-                ));
+        let size = |table: String, got: usize, expected: usize| {
+            if got == expected {
+                Ok(())
+            } else {
+                Err(ModelError::TableSize {
+                    table,
+                    got,
+                    expected,
+                })
             }
+        };
+        for (c, f) in self.fresnel.iter().enumerate() {
+            size(format!("F channel {c}"), f.len(), l.f.len())?;
         }
         for (m, lobe) in self.lobes.iter().enumerate() {
-            if lobe.d.len() != l.d.len() || lobe.g.len() != l.g.len() {
-                return Err(format!(
-                    "lobe {m}: D/G sizes {}/{} do not match the layout",
-                    lobe.d.len(),
-                    lobe.g.len()
-                ));
-            }
+            size(format!("lobe {m} D"), lobe.d.len(), l.d.len())?;
+            size(format!("lobe {m} G"), lobe.g.len(), l.g.len())?;
         }
         let params = self.params();
         if let Some(i) = params.iter().position(|v| !v.is_finite()) {
-            return Err(format!("parameter {i} is not finite"));
+            return Err(ModelError::NotFinite(i));
         }
         if self
             .diffuse
@@ -187,7 +295,7 @@ impl Model {
                 .iter()
                 .any(|l| l.s.iter().chain(&l.d).any(|&v| v < 0.0))
         {
-            return Err("negative d, s, D or F value".into());
+            return Err(ModelError::Negative);
         }
         Ok(())
     }
@@ -201,7 +309,10 @@ impl Model {
         }
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
-        let (gis, gos) = (l.g_stencil(a.theta_i), l.g_stencil(a.theta_o));
+        let (gis, gos) = (
+            l.g_stencil(a.theta_i, a.phi_i),
+            l.g_stencil(a.theta_o, a.phi_o),
+        );
         let f = [
             fs.apply_f32(&self.fresnel[0]),
             fs.apply_f32(&self.fresnel[1]),
@@ -222,8 +333,10 @@ impl Model {
         v.map(|x| x.max(0.0))
     }
 
-    /// BRDF value for unit directions in the local shading frame (normal +z).
-    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [f64; 3] {
+    /// BRDF value for unit directions in the local shading frame (normal
+    /// +z), pbrt's argument order: outgoing (view) direction first. The
+    /// model is reciprocal, so the order changes no value.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> [f64; 3] {
         if wi[2] <= 0.0 || wo[2] <= 0.0 {
             return [0.0; 3];
         }
@@ -271,10 +384,46 @@ mod tests {
         let m = toy(3);
         let wi = [0.3, 0.1, (1.0f64 - 0.1).sqrt()];
         let wo = [-0.5, 0.2, (1.0f64 - 0.29).sqrt()];
-        let (a, b) = (m.eval(wi, wo), m.eval(wo, wi));
+        let (a, b) = (m.eval(wo, wi), m.eval(wi, wo));
         for c in 0..3 {
             assert!((a[c] - b[c]).abs() < 1e-12 * a[c]);
         }
-        assert_eq!(m.eval([0.0, 1.0, -0.1], wo), [0.0; 3]);
+        assert_eq!(m.eval(wo, [0.0, 1.0, -0.1]), [0.0; 3]);
+    }
+
+    #[test]
+    fn anisotropic_layout_has_2010_parameters_and_depends_on_phi() {
+        let layout = Layout::anisotropic();
+        assert!(!layout.is_isotropic() && Layout::default().is_isotropic());
+        assert_eq!(layout.param_count(3), 2010);
+        let (nd, ng, nf) = (layout.d.len(), layout.g.len(), layout.f.len());
+        let mut m = Model {
+            layout,
+            diffuse: [0.1; 3],
+            fresnel: [vec![1.0; nf], vec![1.0; nf], vec![1.0; nf]],
+            lobes: vec![Lobe {
+                s: [1.0; 3],
+                d: (0..nd).map(|k| 1.0 + (k % 48) as f32).collect(),
+                g: vec![0.9; ng],
+            }],
+        };
+        assert!(m.validate().is_ok());
+        let back = Model::from_params(layout, 1, &m.params()).unwrap();
+        assert_eq!(back, m);
+        let wi = [0.3, 0.1, (1.0f64 - 0.1).sqrt()];
+        let wo = [-0.5, 0.2, (1.0f64 - 0.29).sqrt()];
+        let rot = |v: [f64; 3], a: f64| {
+            [
+                v[0] * a.cos() - v[1] * a.sin(),
+                v[0] * a.sin() + v[1] * a.cos(),
+                v[2],
+            ]
+        };
+        let (a, b) = (m.eval(wo, wi), m.eval(rot(wo, 1.0), rot(wi, 1.0)));
+        assert!((a[0] - b[0]).abs() > 1e-3 * a[0], "{a:?} {b:?}");
+        let (x, y) = (m.eval(wo, wi), m.eval(wi, wo));
+        assert!((x[0] - y[0]).abs() < 1e-12 * x[0]);
+        m.lobes[0].g.pop();
+        assert!(matches!(m.validate(), Err(ModelError::TableSize { .. })));
     }
 }

@@ -1,67 +1,95 @@
 //! Model files: a documented, versioned JSON form and a compact binary form.
 //!
 //! JSON (`.json`): `{"format": "npf-model", "version": 1, "conventions":
-//! {...}, "model": {...}, "fit": {...}}`. `model` holds the layout (the axis
-//! of every factor), `diffuse` [3], `fresnel` [3][n_F] and `lobes`, each with
-//! `s` [3], `d` [n_D] and `g` [n_G]; `conventions` spells out units and
+//! {...}, "model": {...}, "fit": {...}}`. `model` holds the layout (the grid
+//! of every factor: its theta axis, plus `"phi": {"n": N}` for a 2-D table),
+//! `diffuse` [3], `fresnel` [3][n_F] and `lobes`, each with `s` [3], `d`
+//! [n_D] and `g` [n_G] (2-D tables row-major theta x phi); `conventions` spells out units and
 //! formulas for a reader without this code (ignored when reading); `fit` is
 //! optional provenance (source, options, objective, errors).
 //!
 //! Binary (`.npfb`), little-endian: magic `NPFB`, u16 version (1), u16
-//! reserved (0), u8 layout kind (0 = isotropic 1-D tables), u8 lobes, then
-//! for D, F, G: u8 axis kind (0 sqrt-angle, 1 uniform, 2 Catmull-Rom) and
-//! u16 node count; u32 parameter count; then the parameters as f32 in
-//! `Model::params` order (d, s per lobe, D per lobe, G per lobe, F_R, F_G,
-//! F_B). 23 header bytes + 822 x 4 = 3,311 bytes for the default model. No
-//! provenance: it is the form a renderer loads.
+//! reserved (0), u8 layout kind, u8 lobes, then for D, F, G: u8 axis kind
+//! (0 sqrt-angle, 1 uniform, 2 Catmull-Rom) and u16 theta node count, and
+//! for layout kind 1 also u16 phi node count (0: a 1-D table); u32
+//! parameter count; then the parameters as f32 in `Model::params` order (d,
+//! s per lobe, D per lobe, G per lobe, F_R, F_G, F_B). Layout kind 0 (all
+//! tables 1-D, the isotropic model) has 23 header bytes: 23 + 822 x 4 =
+//! 3,311 bytes for the default model; kind 1 (some table 2-D) has 29. Files
+//! of kind 0 are what earlier versions wrote, and isotropic models are still
+//! written so. No provenance: it is the form a renderer loads.
 //!
 //! Both forms hold the model's f32 parameters exactly, so writing and
 //! reading gives back the same model bit for bit.
 
-use crate::interp::Axis;
+use crate::grid::{Axis, Grid, PhiAxis};
 use crate::metrics::Metrics;
-use crate::model::{Layout, Model};
+use crate::model::{Layout, Model, ModelError};
 use byteorder::{ByteOrder, LittleEndian as LE};
 use npf_data_loaders::atomic::write_bytes_atomic;
 use npf_data_loaders::LoadError;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+/// The JSON form's `format` value.
 pub const FORMAT: &str = "npf-model";
+/// The version both forms carry.
 pub const VERSION: u32 = 1;
 const MAGIC: &[u8; 4] = b"NPFB";
+/// Header bytes of layout kind 0 (1-D tables).
 const HEADER_BYTES: usize = 23;
+/// Header bytes of layout kind 1 (grids with a phi axis).
+const HEADER_BYTES_2D: usize = 29;
 
 /// How a model was made (stored in JSON files only).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FitInfo {
+    /// The fitted data's source.
     pub source: String,
+    /// The npf version that fitted it.
     pub npf_version: String,
+    /// Specular lobes.
     pub lobes: usize,
+    /// Residual weighting name.
     pub weighting: String,
+    /// The compressive weighting's floor.
     pub epsilon: f64,
+    /// Grazing cut-off (degrees).
     pub max_theta_deg: f64,
+    /// D half-angle limit (degrees).
     pub max_theta_h_deg: f64,
     /// Where D was constrained to be non-increasing (absent: a free tail).
     #[serde(default)]
     pub d_monotone_from_deg: Option<f64>,
+    /// G update method name.
     pub g_method: String,
+    /// G smoothing width, if any.
     pub smooth_g: Option<f64>,
+    /// Sweeps run.
     pub sweeps: usize,
+    /// Whether the fit converged.
     pub converged: bool,
+    /// Final objective.
     pub objective: f64,
+    /// Fit wall time.
     pub seconds: f64,
+    /// Threads used.
     pub threads: usize,
+    /// Samples fitted.
     pub samples: usize,
+    /// Fit errors, if measured.
     pub metrics: Option<Metrics>,
     /// Free-form notes (e.g. why this configuration was chosen).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub selection: Option<serde_json::Value>,
 }
 
+/// A model with its optional provenance.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelFile {
+    /// The model.
     pub model: Model,
+    /// How it was made (JSON files only).
     pub fit: Option<FitInfo>,
 }
 
@@ -85,19 +113,43 @@ fn conventions() -> serde_json::Value {
         "axes": {
             "sqrt_angle": "n nodes, node k at theta = (k/n)^2 * pi/2; linear in sqrt(theta) between nodes; constant past the last node",
             "uniform": "n nodes, node k at theta = k/n * pi/2; linear between nodes; constant past the last node",
-            "catmull_rom": "n control points at theta_k = k/(n-1) * pi/2; pbrt-v3 CatmullRomWeights (centred tangents, chord at the ends)"
+            "catmull_rom": "n control points at theta_k = k/(n-1) * pi/2; pbrt-v3 CatmullRomWeights (centred tangents, chord at the ends)",
+            "phi": "optional periodic azimuth axis of a 2-D table: n nodes at phi_k = 2 pi k / n, linear, wrapping; the table is row-major theta x phi; D reads (theta_h, phi_h), G (theta, phi) of each direction, F (theta_d, phi_d)"
         },
         "gauge": "max of G over constrained control points = 1; 2 pi * integral over theta_h <= 60 deg of D cos sin = 1; F_C(0) = 1",
         "below_horizon": "the BRDF is 0 when cos theta_i <= 0 or cos theta_o <= 0"
     })
 }
 
+/// Why a model file could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelFileError {
+    /// Reading or writing failed.
     #[error(transparent)]
     Io(#[from] LoadError),
+    /// The file is not a model file of a supported form.
     #[error("{path}: {problem}")]
-    Invalid { path: String, problem: String },
+    Invalid {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// The file holds a model that is not valid.
+    #[error("{path}: {source}")]
+    Model {
+        /// The file.
+        path: String,
+        /// What is wrong with the model.
+        source: ModelError,
+    },
+}
+
+fn bad_model(path: &Path, source: ModelError) -> ModelFileError {
+    ModelFileError::Model {
+        path: path.display().to_string(),
+        source,
+    }
 }
 
 fn invalid(path: &Path, problem: impl Into<String>) -> ModelFileError {
@@ -107,13 +159,17 @@ fn invalid(path: &Path, problem: impl Into<String>) -> ModelFileError {
     }
 }
 
+/// The two file forms.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Form {
+    /// `.json`: documented, with provenance.
     Json,
+    /// `.npfb`: compact binary.
     Binary,
 }
 
 impl Form {
+    /// The form an extension names.
     pub fn of(path: &Path) -> Result<Form, ModelFileError> {
         match path
             .extension()
@@ -131,6 +187,7 @@ impl Form {
     }
 }
 
+/// The JSON form.
 pub fn to_json(file: &ModelFile) -> String {
     let j = JsonFile {
         format: FORMAT.into(),
@@ -142,6 +199,7 @@ pub fn to_json(file: &ModelFile) -> String {
     serde_json::to_string_pretty(&j).expect("a model always serialises")
 }
 
+/// Parse the JSON form (`path` is for messages).
 pub fn from_json(text: &str, path: &Path) -> Result<ModelFile, ModelFileError> {
     let j: JsonFile = serde_json::from_str(text)
         .map_err(|e| invalid(path, format!("not a valid npf model JSON file: {e}")))?;
@@ -160,7 +218,7 @@ pub fn from_json(text: &str, path: &Path) -> Result<ModelFile, ModelFileError> {
             ),
         ));
     }
-    j.model.validate().map_err(|e| invalid(path, e))?;
+    j.model.validate().map_err(|e| bad_model(path, e))?;
     Ok(ModelFile {
         model: j.model,
         fit: j.fit,
@@ -185,26 +243,36 @@ fn axis_from(code: u8, n: u16) -> Option<Axis> {
     }
 }
 
+/// The binary form (layout kind 0 for an isotropic layout, 1 otherwise).
 pub fn to_binary(model: &Model) -> Vec<u8> {
     let params = model.params();
-    let mut out = vec![0u8; HEADER_BYTES + 4 * params.len()];
+    let l = model.layout;
+    let flat = l.is_isotropic();
+    let (header, per) = if flat {
+        (HEADER_BYTES, 3)
+    } else {
+        (HEADER_BYTES_2D, 5)
+    };
+    let mut out = vec![0u8; header + 4 * params.len()];
     out[0..4].copy_from_slice(MAGIC);
     LE::write_u16(&mut out[4..6], VERSION as u16);
-    out[8] = 0;
+    out[8] = if flat { 0 } else { 1 };
     out[9] = model.lobes.len() as u8;
-    for (i, a) in [model.layout.d, model.layout.f, model.layout.g]
-        .into_iter()
-        .enumerate()
-    {
-        let (code, n) = axis_code(a);
-        out[10 + 3 * i] = code;
-        LE::write_u16(&mut out[11 + 3 * i..13 + 3 * i], n);
+    for (i, g) in [l.d, l.f, l.g].into_iter().enumerate() {
+        let at = 10 + per * i;
+        let (code, n) = axis_code(g.theta);
+        out[at] = code;
+        LE::write_u16(&mut out[at + 1..at + 3], n);
+        if !flat {
+            LE::write_u16(&mut out[at + 3..at + 5], g.phi.map_or(0, |p| p.n as u16));
+        }
     }
-    LE::write_u32(&mut out[19..23], params.len() as u32);
-    LE::write_f32_into(&params, &mut out[HEADER_BYTES..]);
+    LE::write_u32(&mut out[header - 4..header], params.len() as u32);
+    LE::write_f32_into(&params, &mut out[header..]);
     out
 }
 
+/// Parse the binary form (`path` is for messages).
 pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
     if bytes.len() < HEADER_BYTES || &bytes[0..4] != MAGIC {
         return Err(invalid(
@@ -219,28 +287,39 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
             format!("binary model version {version} is not supported (this npf reads {VERSION})"),
         ));
     }
-    if bytes[8] != 0 {
-        return Err(invalid(
-            path,
-            format!("layout kind {} is not supported", bytes[8]),
-        ));
+    let (header, per) = match bytes[8] {
+        0 => (HEADER_BYTES, 3),
+        1 => (HEADER_BYTES_2D, 5),
+        k => {
+            return Err(invalid(path, format!("layout kind {k} is not supported")));
+        }
+    };
+    if bytes.len() < header {
+        return Err(invalid(path, "shorter than the header"));
     }
     let lobes = bytes[9] as usize;
-    let mut axes = [Axis::Uniform { n: 0 }; 3];
-    for (i, axis) in axes.iter_mut().enumerate() {
-        *axis = axis_from(
-            bytes[10 + 3 * i],
-            LE::read_u16(&bytes[11 + 3 * i..13 + 3 * i]),
-        )
-        .ok_or_else(|| invalid(path, format!("unknown axis kind {}", bytes[10 + 3 * i])))?;
+    let mut grids = [Grid::line(Axis::Uniform { n: 0 }); 3];
+    for (i, grid) in grids.iter_mut().enumerate() {
+        let at = 10 + per * i;
+        let theta = axis_from(bytes[at], LE::read_u16(&bytes[at + 1..at + 3]))
+            .ok_or_else(|| invalid(path, format!("unknown axis kind {}", bytes[at])))?;
+        let n_phi = if per == 5 {
+            LE::read_u16(&bytes[at + 3..at + 5]) as usize
+        } else {
+            0
+        };
+        *grid = Grid {
+            theta,
+            phi: (n_phi > 0).then_some(PhiAxis { n: n_phi }),
+        };
     }
     let layout = Layout {
-        d: axes[0],
-        f: axes[1],
-        g: axes[2],
+        d: grids[0],
+        f: grids[1],
+        g: grids[2],
     };
-    let count = LE::read_u32(&bytes[19..23]) as usize;
-    let expected = HEADER_BYTES as u64 + 4 * count as u64;
+    let count = LE::read_u32(&bytes[header - 4..header]) as usize;
+    let expected = header as u64 + 4 * count as u64;
     if bytes.len() as u64 != expected {
         return Err(invalid(
             path,
@@ -251,8 +330,8 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
         ));
     }
     let mut params = vec![0f32; count];
-    LE::read_f32_into(&bytes[HEADER_BYTES..], &mut params);
-    Model::from_params(layout, lobes, &params).map_err(|e| invalid(path, e))
+    LE::read_f32_into(&bytes[header..], &mut params);
+    Model::from_params(layout, lobes, &params).map_err(|e| bad_model(path, e))
 }
 
 /// Read a model file of either form (chosen by extension).

@@ -14,8 +14,15 @@
 //! W = w_1 + w_2, y = (w_1 y_1 + w_2 y_2) / W and c = w_1 w_2 (y_1 - y_2)^2 / W,
 //! so merging them halves the work and leaves every update exactly the same;
 //! c is kept in `objective_offset` so reported objectives are the true ones.
+//! Only isotropic samples fitted with an isotropic layout are merged: for
+//! an anisotropic model the two configurations differ in phi.
+//!
+//! Anisotropic layouts read the samples' azimuths too (phi_h for D, phi_i
+//! and phi_o for G); their stencils are the products of a theta and a phi
+//! stencil, and every tail constraint acts on the theta part, so it holds
+//! in every phi column.
 
-use crate::interp::Stencil;
+use crate::grid::{Axis, Grid, Stencil, StencilTable};
 use crate::model::Layout;
 use npf_data_loaders::MeasuredSamples;
 use serde::{Deserialize, Serialize};
@@ -41,8 +48,10 @@ pub enum Weighting {
     Uniform,
 }
 
+/// How samples become the weighted sample set.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SampleOptions {
+    /// The residual weighting.
     pub weighting: Weighting,
     /// The floor eps of the compressive weight, in 1/sr (cosine-weighted).
     pub epsilon: f64,
@@ -70,6 +79,7 @@ impl Default for SampleOptions {
 }
 
 impl SampleOptions {
+    /// The weight of a sample of value `rho` at incidence cosine `cos_i`.
     pub fn weight(&self, rho: f64, cos_i: f64) -> f64 {
         match self.weighting {
             Weighting::Compressive => (cos_i / (rho * cos_i + self.epsilon)).powi(2),
@@ -84,23 +94,28 @@ impl SampleOptions {
 /// their element updates are independent and may run in parallel.
 #[derive(Clone, Debug, Default)]
 pub struct Incidence {
+    /// Entry k's samples are `start[k]..start[k + 1]` of `sample`/`weight`.
     pub start: Vec<usize>,
+    /// The samples touching each entry.
     pub sample: Vec<u32>,
+    /// Their interpolation weights.
     pub weight: Vec<f64>,
+    /// Entries grouped so that no two in a group share a sample.
     pub colors: Vec<Vec<usize>>,
     /// Whether any sample with non-zero weight touches the entry.
     pub has_data: Vec<bool>,
 }
 
 impl Incidence {
+    /// The CSR range of entry k.
     pub fn entries(&self, k: usize) -> std::ops::Range<usize> {
         self.start[k]..self.start[k + 1]
     }
 
-    fn build(cells: usize, stencils: &[Stencil], total_w: &[f64]) -> Self {
+    fn build(cells: usize, stencils: &StencilTable, total_w: &[f64]) -> Self {
         let mut count = vec![0usize; cells];
-        for st in stencils {
-            for (k, _) in st.entries() {
+        for j in 0..stencils.len() {
+            for (k, _) in stencils.entries(j) {
                 count[k] += 1;
             }
         }
@@ -113,19 +128,19 @@ impl Incidence {
         let mut weight = vec![0.0; start[cells]];
         let mut has_data = vec![false; cells];
         let mut conflict = vec![false; cells * cells];
-        for (j, st) in stencils.iter().enumerate() {
-            for (k, w) in st.entries() {
+        for (j, &tw) in total_w.iter().enumerate().take(stencils.len()) {
+            for (k, w) in stencils.entries(j) {
                 sample[fill[k]] = j as u32;
                 weight[fill[k]] = w;
                 fill[k] += 1;
-                has_data[k] |= total_w[j] > 0.0;
-                for (k2, _) in st.entries() {
+                has_data[k] |= tw > 0.0;
+                for (k2, _) in stencils.entries(j) {
                     conflict[k * cells + k2] = true;
                 }
             }
         }
         // Greedy colouring in index order: deterministic and, for 1-D linear
-        // stencils, the two parities.
+        // stencils, the two parities (for bilinear 2-D stencils, four).
         let mut color_of = vec![usize::MAX; cells];
         let mut colors: Vec<Vec<usize>> = Vec::new();
         for k in 0..cells {
@@ -153,31 +168,39 @@ impl Incidence {
 }
 
 /// For each G control point, the samples whose G(theta_i) (weight u) or
-/// G(theta_o) (weight v) use it. Both appear in one entry.
+/// G(theta_o) (weight v) use it. Both appear in one entry, so a sample
+/// occurs at most once per point.
 #[derive(Clone, Debug, Default)]
 pub struct GIncidence {
+    /// Point k's samples are `start[k]..start[k + 1]`.
     pub start: Vec<usize>,
+    /// The samples touching each point.
     pub sample: Vec<u32>,
+    /// The point's weight in the sample's G(theta_i).
     pub u: Vec<f64>,
+    /// The point's weight in the sample's G(theta_o).
     pub v: Vec<f64>,
+    /// Whether any sample with non-zero weight touches the point.
     pub has_data: Vec<bool>,
 }
 
 impl GIncidence {
+    /// The CSR range of point k.
     pub fn entries(&self, k: usize) -> std::ops::Range<usize> {
         self.start[k]..self.start[k + 1]
     }
 
-    fn build(nodes: usize, gi: &[Stencil], go: &[Stencil], total_w: &[f64]) -> Self {
+    fn build(nodes: usize, gi: &StencilTable, go: &StencilTable, total_w: &[f64]) -> Self {
+        const MAX_TOUCHED: usize = 2 * crate::grid::MAX_SUPPORT;
         let mut per_node: Vec<Vec<(u32, f64, f64)>> = vec![Vec::new(); nodes];
         for j in 0..gi.len() {
-            let mut touched: [(usize, f64, f64); 8] = [(usize::MAX, 0.0, 0.0); 8];
+            let mut touched = [(usize::MAX, 0.0, 0.0); MAX_TOUCHED];
             let mut n = 0;
-            for (k, w) in gi[j].entries() {
+            for (k, w) in gi.entries(j) {
                 touched[n] = (k, w, 0.0);
                 n += 1;
             }
-            for (k, w) in go[j].entries() {
+            for (k, w) in go.entries(j) {
                 match touched[..n].iter_mut().find(|t| t.0 == k) {
                     Some(t) => t.2 = w,
                     None => {
@@ -225,64 +248,95 @@ pub struct SampleStats {
 /// Everything the solver reads, built once.
 #[derive(Clone, Debug)]
 pub struct FitSet {
+    /// The layout the stencils index.
     pub layout: Layout,
+    /// The options the set was built with.
     pub options: SampleOptions,
+    /// Measured RGB values (merged pairs: their weighted mean).
     pub y: Vec<[f64; 3]>,
+    /// Per-channel residual weights.
     pub w: Vec<[f64; 3]>,
     /// 1 / (cos theta_i cos theta_o).
     pub inv_cc: Vec<f64>,
-    pub d_st: Vec<Stencil>,
-    pub f_st: Vec<Stencil>,
-    pub gi_st: Vec<Stencil>,
-    pub go_st: Vec<Stencil>,
+    /// D stencils (tail folded).
+    pub d_st: StencilTable,
+    /// F stencils.
+    pub f_st: StencilTable,
+    /// G stencils at the incoming direction (tail folded).
+    pub gi_st: StencilTable,
+    /// G stencils at the outgoing direction (tail folded).
+    pub go_st: StencilTable,
+    /// Samples per D entry.
     pub d_inc: Incidence,
+    /// Samples per F entry.
     pub f_inc: Incidence,
+    /// Samples per G control point.
     pub g_inc: GIncidence,
     /// Constant part of the objective from merged pairs.
     pub objective_offset: f64,
+    /// What happened to the input samples.
     pub stats: SampleStats,
 }
 
+/// Why a sample set could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum SampleError {
+    /// A NaN, infinite or negative measured value.
     #[error("{source_name}: sample {index} has a non-finite or negative value {value}")]
     BadValue {
+        /// The samples' source.
         source_name: String,
+        /// Sample index.
         index: usize,
+        /// The value.
         value: f64,
     },
+    /// Nothing left after the cut-off.
     #[error("{source_name}: no valid samples left to fit ({input} valid in the input, {cut} beyond the {max_theta_deg} degree cut-off)")]
     Empty {
+        /// The samples' source.
         source_name: String,
+        /// Valid input samples.
         input: usize,
+        /// Samples cut.
         cut: usize,
+        /// The cut-off.
         max_theta_deg: f64,
     },
+    /// Out-of-range sample options.
     #[error("bad sample options: {0}")]
     Options(String),
+    /// Anisotropic samples with a layout that cannot represent them.
+    #[error("{0}: anisotropic samples need an anisotropic layout")]
+    AnisotropicData(String),
+    /// The layout itself is invalid.
+    #[error(transparent)]
+    Layout(#[from] crate::model::ModelError),
 }
 
 /// The last G control point at or below the cut-off. Points past it would
 /// only be touched by the Catmull-Rom tails of a few samples near the cut
 /// and take wild values, so they are not free: they ramp linearly from the
 /// last free point to 0 at 90 degrees (see `solver::gauge`).
+/// (A theta index: the rule holds in every phi column of a 2-D G.)
 pub fn last_free_g_node(layout: &Layout, cut: f64) -> usize {
-    last_free_node(&layout.g, cut).min(layout.g.len() - 2)
+    last_free_node(&layout.g.theta, cut).min(layout.g.n_theta() - 2)
 }
 
 /// The last node of an axis at or below an angle.
-pub fn last_free_node(axis: &crate::interp::Axis, limit: f64) -> usize {
+pub fn last_free_node(axis: &Axis, limit: f64) -> usize {
     (0..axis.len())
         .rev()
         .find(|&k| axis.node(k) <= limit + 1e-12)
         .unwrap_or(0)
 }
 
-/// Re-express a stencil on tied tail entries through the last free entry L:
-/// value_k = value_L * tie(k) for k > L.
+/// Re-express a theta stencil on tied tail entries through the last free
+/// entry L: value_k = value_L * tie(k) for k > L. Applied before the phi
+/// product, so in a 2-D table the tie holds per phi column.
 fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stencil {
-    let mut out = Stencil::default();
-    let mut slots = 0;
+    let mut slots: [(usize, f64); crate::grid::MAX_SUPPORT] = [(0, 0.0); crate::grid::MAX_SUPPORT];
+    let mut n = 0;
     for (k, w) in st.entries() {
         let (k, w) = if k > last_free {
             (last_free, w * tie(k))
@@ -292,14 +346,17 @@ fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stenc
         if w == 0.0 {
             continue;
         }
-        match (0..slots).find(|&i| out.idx[i] as usize == k) {
-            Some(i) => out.w[i] += w,
+        match (0..n).find(|&i| slots[i].0 == k) {
+            Some(i) => slots[i].1 += w,
             None => {
-                out.idx[slots] = k as u32;
-                out.w[slots] = w;
-                slots += 1;
+                slots[n] = (k, w);
+                n += 1;
             }
         }
+    }
+    let mut out = Stencil::empty(0);
+    for &(k, w) in &slots[..n] {
+        out.push(k, w);
     }
     out
 }
@@ -310,8 +367,12 @@ struct Raw {
     w: [f64; 3],
     theta_i: f64,
     theta_o: f64,
+    phi_i: f64,
+    phi_o: f64,
     theta_h: f64,
+    phi_h: f64,
     theta_d: f64,
+    phi_d: f64,
 }
 
 impl FitSet {
@@ -327,11 +388,18 @@ impl FitSet {
             + self.objective_offset
     }
 
+    /// Build the set: validate, weight, cut, merge reciprocal pairs (isotropic
+    /// data and layout only), and precompute every stencil and incidence.
     pub fn build(
         samples: &MeasuredSamples,
         layout: Layout,
         options: SampleOptions,
     ) -> Result<Self, SampleError> {
+        layout.validate()?;
+        if !samples.isotropic && layout.is_isotropic() {
+            return Err(SampleError::AnisotropicData(samples.source.clone()));
+        }
+        let merge = samples.isotropic && layout.is_isotropic();
         if !(options.epsilon > 0.0 && options.epsilon.is_finite()) {
             return Err(SampleError::Options(format!(
                 "epsilon must be positive, got {}",
@@ -372,10 +440,13 @@ impl FitSet {
                 continue;
             }
             let w = s.rgb.map(|v| options.weight(v, ci));
-            let (lo, hi) = if a.theta_i <= a.theta_o {
-                (a.theta_i, a.theta_o)
+            // G(in) G(out) is symmetric in the two directions, so ordering
+            // each pair by elevation (azimuths travel with their elevation)
+            // changes no model value.
+            let ((lo, plo), (hi, phi)) = if a.theta_i <= a.theta_o {
+                ((a.theta_i, a.phi_i), (a.theta_o, a.phi_o))
             } else {
-                (a.theta_o, a.theta_i)
+                ((a.theta_o, a.phi_o), (a.theta_i, a.phi_i))
             };
             raws.push(Raw {
                 key: (q(a.theta_h), q(a.theta_d), q(lo), q(hi)),
@@ -383,15 +454,13 @@ impl FitSet {
                 w,
                 theta_i: lo,
                 theta_o: hi,
+                phi_i: plo,
+                phi_o: phi,
                 theta_h: a.theta_h,
+                phi_h: a.phi_h,
                 theta_d: a.theta_d,
+                phi_d: a.phi_d,
             });
-        }
-        if !samples.isotropic {
-            return Err(SampleError::Options(format!(
-                "{}: anisotropic samples need an anisotropic layout (not supported yet)",
-                samples.source
-            )));
         }
         if raws.is_empty() {
             return Err(SampleError::Empty {
@@ -404,7 +473,7 @@ impl FitSet {
         // Merge reciprocal partners (first occurrence keeps its place).
         let mut merged: Vec<Raw> = Vec::with_capacity(raws.len());
         let mut offset = 0.0;
-        if samples.isotropic {
+        if merge {
             let mut seen: HashMap<(i64, i64, i64, i64), usize> = HashMap::with_capacity(raws.len());
             for r in raws {
                 match seen.get(&r.key) {
@@ -447,10 +516,10 @@ impl FitSet {
             y: Vec::with_capacity(n),
             w: Vec::with_capacity(n),
             inv_cc: Vec::with_capacity(n),
-            d_st: Vec::with_capacity(n),
-            f_st: Vec::with_capacity(n),
-            gi_st: Vec::with_capacity(n),
-            go_st: Vec::with_capacity(n),
+            d_st: StencilTable::with_capacity(layout.d.stencil_width(), n),
+            f_st: StencilTable::with_capacity(layout.f.stencil_width(), n),
+            gi_st: StencilTable::with_capacity(layout.g.stencil_width(), n),
+            go_st: StencilTable::with_capacity(layout.g.stencil_width(), n),
             d_inc: Incidence::default(),
             f_inc: Incidence::default(),
             g_inc: GIncidence::default(),
@@ -458,20 +527,21 @@ impl FitSet {
             stats,
         };
         let g_free = last_free_g_node(&layout, cut);
-        let d_free = last_free_node(&layout.d, options.max_theta_h_deg.to_radians());
-        let n_g = layout.g.len();
+        let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
+        let n_g = layout.g.n_theta();
         let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
+        let (dg, fg, gg): (Grid, Grid, Grid) = (layout.d, layout.f, layout.g);
         for r in &merged {
             set.y.push(r.y);
             set.w.push(r.w);
             set.inv_cc.push(1.0 / (r.theta_i.cos() * r.theta_o.cos()));
-            set.d_st
-                .push(fold_tail(layout.d.stencil(r.theta_h), d_free, |_| 1.0));
-            set.f_st.push(layout.f.stencil(r.theta_d));
-            set.gi_st
-                .push(fold_tail(layout.g.stencil(r.theta_i), g_free, g_ramp));
-            set.go_st
-                .push(fold_tail(layout.g.stencil(r.theta_o), g_free, g_ramp));
+            let d = fold_tail(dg.theta.stencil(r.theta_h), d_free, |_| 1.0);
+            set.d_st.push(&dg.extend(d, r.phi_h));
+            set.f_st.push(&fg.stencil(r.theta_d, r.phi_d));
+            let gi = fold_tail(gg.theta.stencil(r.theta_i), g_free, g_ramp);
+            set.gi_st.push(&gg.extend(gi, r.phi_i));
+            let go = fold_tail(gg.theta.stencil(r.theta_o), g_free, g_ramp);
+            set.go_st.push(&gg.extend(go, r.phi_o));
         }
         let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
         set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
@@ -480,18 +550,28 @@ impl FitSet {
         Ok(set)
     }
 
+    /// Number of samples the solver sees.
     pub fn len(&self) -> usize {
         self.y.len()
     }
 
+    /// Whether the set has no samples.
     pub fn is_empty(&self) -> bool {
         self.y.is_empty()
     }
 
     /// Approximate heap size in bytes, for reports.
     pub fn heap_bytes(&self) -> usize {
-        let per_sample = 2 * 24 + 8 + 4 * std::mem::size_of::<Stencil>();
+        let per_sample = 2 * 24 + 8;
+        let st = self.d_st.heap_bytes()
+            + self.f_st.heap_bytes()
+            + self.gi_st.heap_bytes()
+            + self.go_st.heap_bytes();
         let inc = |i: &Incidence| i.sample.len() * 12 + i.start.len() * 8;
-        self.len() * per_sample + inc(&self.d_inc) + inc(&self.f_inc) + self.g_inc.sample.len() * 20
+        self.len() * per_sample
+            + st
+            + inc(&self.d_inc)
+            + inc(&self.f_inc)
+            + self.g_inc.sample.len() * 20
     }
 }

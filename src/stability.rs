@@ -301,7 +301,7 @@ pub fn run(
     let res = match Executor::new(&set, opts).run() {
         Ok(r) => r,
         Err(e) => {
-            out.error = Some(e);
+            out.error = Some(e.to_string());
             return out;
         }
     };

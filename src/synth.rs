@@ -42,9 +42,10 @@ impl GgxLambert {
 /// solver, comparing values (the factors themselves are only defined up to
 /// the gauge).
 pub fn known_factor_model(layout: Layout, alphas: &[f64]) -> Model {
-    let table = |axis: crate::interp::Axis, f: &dyn Fn(f64) -> f64| {
-        (0..axis.len())
-            .map(|k| f(axis.node(k)) as f32)
+    let table = |grid: crate::grid::Grid, f: &dyn Fn(f64) -> f64| {
+        crate::solver::init::theta_table(grid, f)
+            .into_iter()
+            .map(|v| v as f32)
             .collect::<Vec<f32>>()
     };
     let f0 = [0.9, 0.6, 0.3];

@@ -4,7 +4,8 @@
 //! truth, and the `compare`, `fit --model` and `report` commands work end to
 //! end on tables npf makes itself.
 
-use npf::baselines::{fit_ggx, fit_independent_g, ggx_table, independent_g_model, GgxParams};
+use npf::baselines::{fit_ggx, ggx_table, independent_g_model, GgxParams};
+use npf::fit::{fit_model, FitConfig, ModelKind};
 use npf::evaluation::{table_brdf, Reference};
 use npf::loaders::{MeasuredSamples, MerlTable};
 use npf::metrics::compare_model;
@@ -12,7 +13,6 @@ use npf::model::Layout;
 use npf::reconstruct::to_merl;
 use npf::render::{psnr, render, RenderOptions};
 use npf::samples::SampleOptions;
-use npf::solver::FitOptions;
 use npf::synth::{known_factor_model, GgxLambert};
 use std::path::Path;
 use std::process::{Command, Output};
@@ -143,18 +143,14 @@ fn independent_g_recovers_its_synthetic_truth() {
     ]);
     let table = to_merl(&truth);
     let all = table.samples("independent-g truth");
-    let fit = fit_independent_g(
-        &thinned(&table, 3),
-        layout,
-        SampleOptions::default(),
-        FitOptions {
-            max_sweeps: 60,
-            tol: 1e-5,
-            ..Default::default()
-        },
-        &mut |_, _| {},
-    )
-    .unwrap();
+    let config = FitConfig {
+        model: ModelKind::IndependentG,
+        nodes: layout.d.len(),
+        max_sweeps: 60,
+        tol: 1e-5,
+        ..Default::default()
+    };
+    let (fit, _) = fit_model(&thinned(&table, 3), &config, &mut |_, _| {}).unwrap();
     let m = compare_model(&all, 85.0, &fit.model);
     let r = Reference::new(&table, &all, SMALL);
     let (e, _) = r.evaluate_model(85.0, &fit.model).unwrap();

@@ -86,3 +86,57 @@ fn damaged_model_files_are_refused() {
     assert!(modelfile::from_json(&json.replace("\"version\": 1", "\"version\": 99"), p).is_err());
     assert!(modelfile::from_json(&json[..json.len() / 2], p).is_err());
 }
+
+/// Files written before grids existed (the committed fits/) read as the same
+/// isotropic model: the binary form is rewritten byte for byte, and the JSON
+/// `model` object is written back unchanged.
+#[test]
+fn files_of_the_1d_format_read_identically() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fits");
+    let json_path = dir.join("ggx-lambert.json");
+    let bin_path = dir.join("ggx-lambert.npfb");
+    let from_json = modelfile::read(&json_path).unwrap();
+    let from_bin = modelfile::read(&bin_path).unwrap();
+    assert_eq!(from_json.model.layout, Layout::default());
+    assert!(from_json.model.layout.is_isotropic());
+    assert_eq!(bits(&from_json.model), bits(&from_bin.model));
+    let bytes = std::fs::read(&bin_path).unwrap();
+    assert_eq!(modelfile::to_binary(&from_bin.model), bytes);
+    let old: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+    let new: serde_json::Value = serde_json::from_str(&modelfile::to_json(&from_json)).unwrap();
+    assert_eq!(old["model"], new["model"]);
+    assert_eq!(old["fit"], new["fit"]);
+}
+
+/// The anisotropic layout (2-D D and G) round-trips in both forms, and
+/// layouts out of bounds are refused.
+#[test]
+fn anisotropic_models_round_trip_and_bad_layouts_are_refused() {
+    let layout = Layout::anisotropic();
+    let n = layout.param_count(3);
+    assert_eq!(n, 2010);
+    let raw: Vec<f32> = (0..n).map(|k| (k as f32 * 0.11).cos().abs()).collect();
+    let model = Model::from_params(layout, 3, &raw).unwrap();
+    let path = Path::new("a.npfb");
+    let bin = modelfile::to_binary(&model);
+    assert_eq!(bin.len(), 29 + 4 * 2010);
+    assert_eq!(modelfile::from_binary(&bin, path).unwrap(), model);
+    let file = ModelFile {
+        model: model.clone(),
+        fit: None,
+    };
+    let back = modelfile::from_json(&modelfile::to_json(&file), Path::new("a.json")).unwrap();
+    assert_eq!(back.model, model);
+    assert_eq!(bits(&back.model), bits(&model));
+    // A G grid with one theta node and a phi axis without nodes.
+    let mut bad = Layout::default();
+    bad.g.theta = npf::grid::Axis::CatmullRom { n: 1 };
+    assert!(Model::from_params(bad, 1, &vec![0.5; bad.param_count(1)]).is_err());
+    let mut bad = Layout::anisotropic();
+    bad.d.phi = Some(npf::grid::PhiAxis { n: 0 });
+    assert!(Model::from_params(bad, 1, &vec![0.5; bad.param_count(1)]).is_err());
+    let mut cut = bin.clone();
+    cut.truncate(27);
+    assert!(modelfile::from_binary(&cut, path).is_err());
+}

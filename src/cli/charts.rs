@@ -281,7 +281,7 @@ fn draw_factors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, title: &str, m
         }
     };
     // One curve per table: (node angle in degrees, value).
-    let curve = |axis: crate::interp::Axis, t: &[f32]| -> Vec<(f64, f64)> {
+    let curve = |axis: crate::grid::Axis, t: &[f32]| -> Vec<(f64, f64)> {
         t.iter()
             .enumerate()
             .map(|(i, &v)| (axis.node(i).to_degrees(), v as f64))
@@ -289,13 +289,13 @@ fn draw_factors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, title: &str, m
     };
     type Series = Vec<(String, Vec<(f64, f64)>)>;
     let d: Series = (m.lobes.iter().enumerate())
-        .map(|(k, lobe)| (name(k), curve(l.d, &lobe.d)))
+        .map(|(k, lobe)| (name(k), curve(l.d.theta, &lobe.d)))
         .collect();
     let f: Series = (m.fresnel.iter().enumerate())
-        .map(|(c, t)| (["F_R", "F_G", "F_B"][c].to_string(), curve(l.f, t)))
+        .map(|(c, t)| (["F_R", "F_G", "F_B"][c].to_string(), curve(l.f.theta, t)))
         .collect();
     let g: Series = (m.lobes.iter().enumerate())
-        .map(|(k, lobe)| (name(k), curve(l.g, &lobe.g)))
+        .map(|(k, lobe)| (name(k), curve(l.g.theta, &lobe.g)))
         .collect();
     panel(&areas[0], "D(theta_h) (log)", "theta_h (deg)", &d, true)?;
     panel(

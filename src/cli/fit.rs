@@ -94,21 +94,23 @@ impl FitFlags {
 
 /// A fit error in terms of the flag that caused it.
 pub fn flag_message(e: &FitError) -> String {
+    use crate::solver::SolverError as S;
     match e {
-        FitError::Lobes(n) => format!("--lobes must be 1 to {MAX_LOBES}, got {n}"),
         FitError::Nodes(n) => format!(
             "--nodes must be {} to {}, got {n}",
             crate::fit::NODES.start(),
             crate::fit::NODES.end()
         ),
-        FitError::MaxSweeps => "--max-sweeps must be at least 1".into(),
-        FitError::Tol(t) => format!("--tol must be a non-negative number, got {t}"),
-        FitError::DMonotoneFrom(t) => {
-            format!("--d-monotone-from must be 0 to 90 degrees, got {t}")
-        }
-        FitError::SmoothG(s) => format!("--smooth-g must be positive, got {s}"),
+        FitError::Solver(s) => match s {
+            S::Lobes(n) => format!("--lobes must be 1 to {MAX_LOBES}, got {n}"),
+            S::MaxSweeps => "--max-sweeps must be at least 1".into(),
+            S::Tolerance(t) => format!("--tol must be a non-negative number, got {t}"),
+            S::MonotoneFrom(t) => format!("--d-monotone-from must be 0 to 90 degrees, got {t}"),
+            S::SmoothG(s) => format!("--smooth-g must be positive, got {s}"),
+            S::MaskedLobe(_) | S::Start(_) => e.to_string(),
+        },
         FitError::Threads { .. } => format!("--threads: {e}"),
-        FitError::Samples(_) | FitError::Solver(_) => e.to_string(),
+        FitError::Samples(_) | FitError::Baseline(_) => e.to_string(),
     }
 }
 

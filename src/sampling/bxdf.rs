@@ -121,7 +121,7 @@ impl NpfBxdf {
     /// Builds the tables. The model is validated first (a model read from a
     /// file already is), so a bad model is an error, never a panic.
     pub fn new(model: Model) -> Result<Self, String> {
-        model.validate()?;
+        model.validate().map_err(|e| e.to_string())?;
         let lobes = model
             .lobes
             .iter()
@@ -282,10 +282,10 @@ impl NpfBxdf {
         };
         let l = &self.model.layout;
         let lobe = &self.model.lobes[m];
-        let d = l.d.stencil(a.theta_h).apply_f32(&lobe.d);
-        let g =
-            l.g.stencil(a.theta_i).apply_f32(&lobe.g) * l.g.stencil(a.theta_o).apply_f32(&lobe.g);
-        let fs = l.f.stencil(a.theta_d);
+        let d = l.d.theta.stencil(a.theta_h).apply_f32(&lobe.d);
+        let g = l.g.theta.stencil(a.theta_i).apply_f32(&lobe.g)
+            * l.g.theta.stencil(a.theta_o).apply_f32(&lobe.g);
+        let fs = l.f.theta.stencil(a.theta_d);
         let spec = d * g / (wi[2] * wo[2]);
         std::array::from_fn(|c| lobe.s[c] as f64 * fs.apply_f32(&self.model.fresnel[c]) * spec)
     }
@@ -298,9 +298,9 @@ impl NpfBxdf {
             return [0.0; 3];
         };
         let l = &self.model.layout;
-        let ds = l.d.stencil(a.theta_h);
-        let fs = l.f.stencil(a.theta_d);
-        let (gi, go) = (l.g.stencil(a.theta_i), l.g.stencil(a.theta_o));
+        let ds = l.d.theta.stencil(a.theta_h);
+        let fs = l.f.theta.stencil(a.theta_d);
+        let (gi, go) = (l.g.theta.stencil(a.theta_i), l.g.theta.stencil(a.theta_o));
         let f: [f64; 3] = std::array::from_fn(|c| fs.apply_f32(&self.model.fresnel[c]));
         let mut v = self.model.diffuse.map(f64::from);
         let inv = 1.0 / (wi[2] * wo[2]);
@@ -541,7 +541,7 @@ pub const NEGLIGIBLE_CELL: f64 = 1e-6;
 /// of the total are dropped. The table is exactly normalised either way, and
 /// pdf is exactly what sample draws.
 fn half_vector_distribution(model: &Model, d: &[f32], g: &[f32]) -> Option<PiecewiseConstant> {
-    let axis = model.layout.d;
+    let axis = model.layout.d.theta;
     let end = axis.coord(FRAC_PI_2);
     let cells = (end.ceil() as usize).max(1) * SUBCELLS;
     let mut edges: Vec<f64> = (0..=cells)
@@ -593,7 +593,15 @@ fn g_product_bound(model: &Model, g: &[f32]) -> impl Fn(f64) -> f64 {
     const STEPS: usize = 720;
     let step = FRAC_PI_2 / STEPS as f64;
     let gv: Vec<f64> = (0..=STEPS)
-        .map(|k| model.layout.g.stencil(k as f64 * step).apply_f32(g).abs())
+        .map(|k| {
+            model
+                .layout
+                .g
+                .theta
+                .stencil(k as f64 * step)
+                .apply_f32(g)
+                .abs()
+        })
         .collect();
     // suffix[k] = max of gv over [k, STEPS].
     let mut suffix = gv.clone();

@@ -5,7 +5,8 @@ use super::gauge::{d_measure, fill_unconstrained, normalise};
 use super::init::initial_factors;
 use super::state::{Factors, State};
 use super::updates::{update_d, update_diffuse_and_scales, update_f, Scratch};
-use super::FitOptions;
+use super::{SolverError, FitOptions, MAX_LOBES};
+use crate::grid::Grid;
 use crate::model::Model;
 use crate::samples::FitSet;
 use rayon::prelude::*;
@@ -14,10 +15,15 @@ use std::time::Instant;
 /// A step of a sweep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
+    /// The D update of a lobe.
     D(usize),
+    /// The F update (all channels).
     F,
+    /// The G update of a lobe.
     G(usize),
+    /// The G smoothing trial of a lobe.
     SmoothG(usize),
+    /// The (d, s) solve.
     DiffuseAndScales,
     /// Canonical rescaling and a fresh recomputation of all caches.
     Gauge,
@@ -28,8 +34,11 @@ pub enum Stage {
 /// One stage's cost, and the objective after it when stages are traced.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StageRecord {
+    /// Which stage.
     pub stage: Stage,
+    /// Its wall time.
     pub seconds: f64,
+    /// The objective after it (only when stages are traced).
     pub objective: Option<f64>,
 }
 
@@ -38,12 +47,15 @@ pub struct StageRecord {
 pub struct SweepReport {
     /// 1-based.
     pub sweep: usize,
+    /// The objective after the sweep.
     pub objective: f64,
     /// (previous - current) / previous.
     pub rel_decrease: f64,
     /// Seconds since the fit started.
     pub elapsed: f64,
+    /// Per-stage records.
     pub stages: Vec<StageRecord>,
+    /// What each lobe's G pass did.
     pub g_passes: Vec<GPassStats>,
     /// Smoothing passes reverted because they raised the objective.
     pub smoothing_reverted: usize,
@@ -53,7 +65,9 @@ pub struct SweepReport {
     pub revived: usize,
 }
 
+/// Receives every sweep's report as the fit runs.
 pub trait Observer {
+    /// Called after each sweep.
     fn observe(&mut self, report: &SweepReport);
 }
 
@@ -63,17 +77,26 @@ impl<F: FnMut(&SweepReport)> Observer for F {
     }
 }
 
+/// The outcome of a fit.
 #[derive(Clone, Debug)]
 pub struct FitResult {
+    /// The fitted model (f32).
     pub model: Model,
+    /// The fitted factors in working precision.
     pub factors: Factors,
+    /// The objective of the start (after the first d, s solve and gauge).
     pub initial_objective: f64,
+    /// The final objective.
     pub objective: f64,
+    /// One report per sweep.
     pub history: Vec<SweepReport>,
+    /// Whether the tolerance ended the fit (not the sweep limit).
     pub converged: bool,
+    /// Wall time.
     pub seconds: f64,
 }
 
+/// Runs sweeps on a sample set until convergence, reporting to observers.
 pub struct Executor<'a> {
     set: &'a FitSet,
     options: FitOptions,
@@ -101,6 +124,7 @@ impl Recorder {
 }
 
 impl<'a> Executor<'a> {
+    /// A fit of `set` with `options`.
     pub fn new(set: &'a FitSet, options: FitOptions) -> Self {
         Executor {
             set,
@@ -116,24 +140,33 @@ impl<'a> Executor<'a> {
         self
     }
 
+    /// Add an observer.
     pub fn observe(mut self, o: &'a mut dyn Observer) -> Self {
         self.observers.push(o);
         self
     }
 
-    pub fn run(mut self) -> Result<FitResult, String> {
+    /// Run the fit.
+    pub fn run(mut self) -> Result<FitResult, SolverError> {
         self.options.validate()?;
         let set = self.set;
         let opts = self.options;
         let t0 = Instant::now();
         let measure = d_measure(set);
-        let factors = self
+        let mut factors = self
             .start
             .take()
             .unwrap_or_else(|| initial_factors(set.layout, opts.lobes));
         if factors.layout != set.layout {
-            return Err("the starting model's layout differs from the sample set's".into());
+            return Err(SolverError::Start(
+                "its layout differs from the sample set's".into(),
+            ));
         }
+        if factors.lobes() == 0 || factors.lobes() > MAX_LOBES {
+            return Err(SolverError::Lobes(factors.lobes()));
+        }
+        let mask = opts.channel_mask;
+        apply_mask(&mut factors, &mask);
         let monotone_from = d_monotone_from(set, opts.d_monotone_from_deg);
         let mut st = State::new(set, factors);
         let mut scratch = Scratch::new(set.len());
@@ -143,7 +176,7 @@ impl<'a> Executor<'a> {
             Scratch::new(set.len()),
         ];
         let mut g_work = Vec::new();
-        update_diffuse_and_scales(set, &mut st);
+        update_diffuse_and_scales(set, &mut st, &mask);
         gauge(set, &mut st, &measure);
         let initial = st.objective(set);
         let mut prev = initial;
@@ -164,7 +197,7 @@ impl<'a> Executor<'a> {
             let mut revived = 0;
             let mut block_convergence = false;
             for m in 0..lobes {
-                if update_d(set, &mut st, m, &mut scratch, monotone_from) {
+                if update_d(set, &mut st, m, &mut scratch, monotone_from, mask[m]) {
                     revived += 1;
                     block_convergence |= std::mem::take(&mut first_revival[m]);
                 }
@@ -178,7 +211,7 @@ impl<'a> Executor<'a> {
                 if let Some(sigma) = opts.smooth_g {
                     let before = st.objective(set);
                     let saved = st.factors.g[m].clone();
-                    gaussian_smooth(&mut st.factors.g[m], sigma);
+                    smooth_theta(&set.layout.g, &mut st.factors.g[m], sigma);
                     st.refresh(set);
                     if st.objective(set) > before {
                         st.factors.g[m] = saved;
@@ -188,7 +221,7 @@ impl<'a> Executor<'a> {
                     rec.mark(Stage::SmoothG(m), set, &st);
                 }
             }
-            update_diffuse_and_scales(set, &mut st);
+            update_diffuse_and_scales(set, &mut st, &mask);
             rec.mark(Stage::DiffuseAndScales, set, &st);
             if sweep % 10 == 0 {
                 gauge(set, &mut st, &measure);
@@ -202,6 +235,7 @@ impl<'a> Executor<'a> {
                 if let Some(old) = &prev_factors {
                     let current = st.factors.clone();
                     st.factors = extrapolate(&current, old, beta, monotone_from);
+                    apply_mask(&mut st.factors, &mask);
                     gauge(set, &mut st, &measure);
                     let trial = st.objective(set);
                     if trial < e {
@@ -279,12 +313,23 @@ fn gauge(set: &FitSet, st: &mut State, measure: &[f64]) {
     st.refresh(set);
 }
 
-/// The first D cell whose half angle lies past `deg` (none: `usize::MAX`).
+/// Hold masked scales at exactly 0.
+fn apply_mask(f: &mut Factors, mask: &[[bool; 3]; MAX_LOBES]) {
+    for (s, on) in f.s.iter_mut().zip(mask) {
+        for c in 0..3 {
+            if !on[c] {
+                s[c] = 0.0;
+            }
+        }
+    }
+}
+
+/// The first D theta index whose half angle lies past `deg` (none: `usize::MAX`).
 fn d_monotone_from(set: &FitSet, deg: Option<f64>) -> usize {
     let Some(deg) = deg else {
         return usize::MAX;
     };
-    let axis = set.layout.d;
+    let axis = set.layout.d.theta;
     (0..axis.len())
         .find(|&k| axis.node(k) > deg.to_radians())
         .unwrap_or(usize::MAX)
@@ -292,7 +337,7 @@ fn d_monotone_from(set: &FitSet, deg: Option<f64>) -> usize {
 
 /// x + beta (x - old), clamped at 0, for every table (both in canonical
 /// form); D may not exceed x's largest D value, and D tails are projected
-/// back onto non-increasing ones.
+/// back onto non-increasing ones (along theta, in every phi column).
 fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> Factors {
     let mv = |a: f64, b: f64| (a + beta * (a - b)).max(0.0);
     let tab = |a: &Vec<f64>, b: &Vec<f64>| {
@@ -318,8 +363,9 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
                 for v in d.iter_mut() {
                     *v = v.min(top);
                 }
-                for k in monotone_from.max(1)..d.len() {
-                    d[k] = d[k].min(d[k - 1]);
+                let np = x.layout.d.n_phi();
+                for k in (monotone_from.max(1).saturating_mul(np)).min(d.len())..d.len() {
+                    d[k] = d[k].min(d[k - np]);
                 }
                 d
             })
@@ -327,6 +373,19 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
         g: (0..lobes).map(|m| tab(&x.g[m], &old.g[m])).collect(),
         f: std::array::from_fn(|c| tab(&x.f[c], &old.f[c])),
     }
+}
+
+/// [`gaussian_smooth`] along theta in every phi column of a table.
+pub fn smooth_theta(grid: &Grid, table: &mut [f64], sigma: f64) {
+    if grid.is_1d() {
+        gaussian_smooth(table, sigma);
+        return;
+    }
+    grid.for_each_column(table, |mut col| {
+        let mut v = col.to_vec();
+        gaussian_smooth(&mut v, sigma);
+        col.assign(&ndarray::ArrayView1::from(&v[..]));
+    });
 }
 
 /// Gaussian smoothing with a kernel truncated at 3 sigma and renormalised at

@@ -23,7 +23,9 @@ use rayon::prelude::*;
 /// What one G pass did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GPassStats {
+    /// Control points whose update was applied.
     pub accepted: usize,
+    /// Control points left unchanged (no step lowered the objective).
     pub rejected: usize,
     /// The largest (least negative) accepted change of the objective; always < 0.
     pub worst_accepted: f64,

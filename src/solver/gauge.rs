@@ -18,35 +18,95 @@
 //! with data; G before the first constrained point takes that value, after
 //! the last it holds its value up to the grazing cut-off, and past the cut
 //! it ramps linearly to 0 at 90 degrees, which keeps G/cos finite.
+//!
+//! On a 2-D (theta, phi) table every rule acts along theta in each phi
+//! column; a column no sample touches copies the nearest column with data
+//! (phi wraps).
 
 use super::state::Factors;
+use crate::grid::Grid;
 use crate::samples::FitSet;
+use ndarray::ArrayViewMut1;
 
-/// D normalisation weights: sum_k q_k D_k = 2 pi integral D cos sin.
+/// D normalisation weights: sum_k q_k D_k = integral over the hemisphere
+/// (theta_h <= 60 degrees) of D cos dw, i.e. 2 pi integral D cos sin for a
+/// 1-D table.
 pub fn d_measure(set: &FitSet) -> Vec<f64> {
     let limit = 60f64.to_radians();
-    set.layout.d.quadrature_weights(|t| {
-        if t <= limit {
-            std::f64::consts::TAU * t.cos() * t.sin()
-        } else {
-            0.0
+    let grid = set.layout.d;
+    match grid.phi {
+        None => grid.theta.quadrature_weights(|t| {
+            if t <= limit {
+                std::f64::consts::TAU * t.cos() * t.sin()
+            } else {
+                0.0
+            }
+        }),
+        Some(phi) => {
+            let qt =
+                grid.theta
+                    .quadrature_weights(|t| if t <= limit { t.cos() * t.sin() } else { 0.0 });
+            let qp = phi.quadrature_weights();
+            qt.iter()
+                .flat_map(|a| qp.iter().map(move |b| a * b))
+                .collect()
         }
-    })
+    }
 }
 
+/// Fill the entries no sample constrains (see the module notes).
 pub fn fill_unconstrained(f: &mut Factors, set: &FitSet) {
     let g_free =
         crate::samples::last_free_g_node(&set.layout, set.options.max_theta_deg.to_radians());
+    let l = set.layout;
     for m in 0..f.lobes() {
-        fill_d(&mut f.d[m], &set.d_inc.has_data);
-        fill_g(&mut f.g[m], &set.g_inc.has_data, g_free);
+        by_column(&l.d, &mut f.d[m], &set.d_inc.has_data, fill_nearest);
+        by_column(&l.g, &mut f.g[m], &set.g_inc.has_data, |g, has| {
+            fill_g(g, has, g_free)
+        });
     }
     for ch in 0..3 {
-        fill_nearest(&mut f.f[ch], &set.f_inc.has_data);
+        by_column(&l.f, &mut f.f[ch], &set.f_inc.has_data, fill_nearest);
     }
 }
 
-fn fill_nearest(t: &mut [f64], has: &[bool]) {
+/// Apply a 1-D fill to every phi column of a table; then columns without
+/// any data take the nearest column with data.
+fn by_column(
+    grid: &Grid,
+    table: &mut [f64],
+    has: &[bool],
+    mut fill: impl FnMut(ArrayViewMut1<f64>, &[bool]),
+) {
+    let np = grid.n_phi();
+    if np == 1 {
+        fill(ArrayViewMut1::from(table), has);
+        return;
+    }
+    let nt = grid.n_theta();
+    let column_has = |p: usize| (0..nt).map(|t| has[t * np + p]).collect::<Vec<bool>>();
+    let with: Vec<usize> = (0..np).filter(|&p| column_has(p).contains(&true)).collect();
+    let mut v = grid.view_mut(table);
+    for p in 0..np {
+        fill(v.column_mut(p), &column_has(p));
+    }
+    if with.is_empty() {
+        return;
+    }
+    for p in 0..np {
+        if !with.contains(&p) {
+            let dist = |q: usize| {
+                let d = p.abs_diff(q);
+                d.min(np - d)
+            };
+            let near = *with.iter().min_by_key(|&&q| dist(q)).unwrap();
+            let src = v.column(near).to_owned();
+            v.column_mut(p).assign(&src);
+        }
+    }
+}
+
+fn fill_nearest(mut t: ArrayViewMut1<f64>, has: &[bool]) {
     let with: Vec<usize> = (0..t.len()).filter(|&k| has[k]).collect();
     if with.is_empty() {
         return;
@@ -62,19 +122,13 @@ fn fill_nearest(t: &mut [f64], has: &[bool]) {
     }
 }
 
-/// D cells past the last constrained one hold its value (that is how the
-/// sample set ties them); gaps before it take the nearest constrained cell.
-fn fill_d(d: &mut [f64], has: &[bool]) {
-    fill_nearest(d, has);
-}
-
 /// G before the first constrained point takes its value; between the last
 /// constrained point and the grazing cut-off (`free`, the last free point)
 /// it holds the last constrained value (missing data there says nothing
 /// about G, and a microfacet G stays near its last value until grazing
 /// angles); past the cut it ramps linearly to 0 at 90 degrees, as the
 /// sample set ties those points, which keeps G/cos finite.
-fn fill_g(g: &mut [f64], has: &[bool], free: usize) {
+fn fill_g(mut g: ArrayViewMut1<f64>, has: &[bool], free: usize) {
     let (Some(first), Some(last)) = (has.iter().position(|&h| h), has.iter().rposition(|&h| h))
     else {
         return;
@@ -95,8 +149,11 @@ fn fill_g(g: &mut [f64], has: &[bool], free: usize) {
 /// The factors by which `normalise` multiplied each table.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scales {
+    /// Per lobe, D's factor.
     pub d: Vec<f64>,
+    /// Per lobe, G's factor.
     pub g: Vec<f64>,
+    /// Per channel, F's factor.
     pub f: [f64; 3],
 }
 

@@ -8,8 +8,10 @@
 //! broad part of the reflectance between them.
 
 use super::state::Factors;
+use crate::grid::Grid;
 use crate::model::Layout;
 
+/// The GGX roughness each lobe starts from.
 pub fn start_alphas(lobes: usize) -> Vec<f64> {
     match lobes {
         1 => vec![0.2],
@@ -36,13 +38,23 @@ pub fn ggx_g1(theta: f64, alpha: f64) -> f64 {
     2.0 / (1.0 + (1.0 + alpha * alpha * t2).sqrt())
 }
 
+/// A table of f(theta) on a grid's nodes (the same profile in every phi column).
+pub fn theta_table(grid: Grid, f: &dyn Fn(f64) -> f64) -> Vec<f64> {
+    (0..grid.len())
+        .map(|k| f(grid.theta.node(grid.theta_index(k))))
+        .collect()
+}
+
+/// The starting factors of a fit with `lobes` lobes (isotropic shapes on
+/// either layout: the first sweeps give them their azimuthal structure).
 pub fn initial_factors(layout: Layout, lobes: usize) -> Factors {
-    let alphas = start_alphas(lobes);
-    let table = |axis: crate::interp::Axis, f: &dyn Fn(f64) -> f64| {
-        (0..axis.len())
-            .map(|k| f(axis.node(k)))
-            .collect::<Vec<f64>>()
-    };
+    initial_factors_with(layout, &start_alphas(lobes))
+}
+
+/// [`initial_factors`] with given per-lobe start roughnesses.
+pub fn initial_factors_with(layout: Layout, alphas: &[f64]) -> Factors {
+    let lobes = alphas.len();
+    let table = |grid: Grid, f: &dyn Fn(f64) -> f64| theta_table(grid, f);
     Factors {
         layout,
         diffuse: [0.0; 3],

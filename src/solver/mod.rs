@@ -21,6 +21,7 @@ pub mod state;
 pub mod updates;
 
 pub use executor::{Executor, FitResult, Observer, Stage, StageRecord, SweepReport};
+pub use g_update::GPassStats;
 pub use state::Factors;
 
 use serde::{Deserialize, Serialize};
@@ -41,16 +42,20 @@ pub enum GMethod {
     Fixed,
 }
 
+/// Options of one AWLS fit.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FitOptions {
     /// Specular lobes, 1 to 3.
     pub lobes: usize,
+    /// The most sweeps to run.
     pub max_sweeps: usize,
     /// Stop when a sweep lowers the objective by less than this fraction.
     pub tol: f64,
+    /// How G is updated.
     pub g_method: GMethod,
-    /// Gaussian smoothing of G (standard deviation in control points) after
-    /// each G update, kept only when it does not raise the objective.
+    /// Gaussian smoothing of G (standard deviation in control points, along
+    /// theta in every phi column) after each G update, kept only when it
+    /// does not raise the objective.
     pub smooth_g: Option<f64>,
     /// After each sweep, try the extrapolated point x + beta (x - x_prev)
     /// and keep it only if it lowers the objective. AWLS is coordinate
@@ -65,7 +70,24 @@ pub struct FitOptions {
     /// non-increasing tail, as every microfacet NDF of a gloss lobe has,
     /// removes that freedom. `None` leaves the tail free.
     pub d_monotone_from_deg: Option<f64>,
+    /// Which channels each lobe may light: `channel_mask[m][c] == false`
+    /// holds s_c^m at exactly 0 (in the start, the d, s solve, the gauge and
+    /// the extrapolation). All true by default. Independent-G is three lobes
+    /// with lobe C lighting channel C only.
+    #[serde(default = "all_channels")]
+    pub channel_mask: [[bool; 3]; MAX_LOBES],
 }
+
+fn all_channels() -> [[bool; 3]; MAX_LOBES] {
+    [[true; 3]; MAX_LOBES]
+}
+
+/// The channel mask of Independent-G: lobe C lights channel C only.
+pub const INDEPENDENT_CHANNELS: [[bool; 3]; MAX_LOBES] = [
+    [true, false, false],
+    [false, true, false],
+    [false, false, true],
+];
 
 impl Default for FitOptions {
     fn default() -> Self {
@@ -78,38 +100,62 @@ impl Default for FitOptions {
             accelerate: true,
             trace_stages: false,
             d_monotone_from_deg: Some(60.0),
+            channel_mask: all_channels(),
         }
     }
 }
 
+/// Why a fit could not run. Messages name the problem; a command line adds
+/// its flag names.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SolverError {
+    /// Lobe count outside 1 to [`MAX_LOBES`].
+    #[error("lobes must be 1 to {MAX_LOBES}, got {0}")]
+    Lobes(usize),
+    /// Zero sweeps.
+    #[error("the sweep limit must be at least 1")]
+    MaxSweeps,
+    /// A negative or non-finite tolerance.
+    #[error("the tolerance must be a non-negative number, got {0}")]
+    Tolerance(f64),
+    /// A monotone-tail angle outside 0 to 90 degrees.
+    #[error("the D monotone-tail angle must be 0 to 90 degrees, got {0}")]
+    MonotoneFrom(f64),
+    /// A non-positive smoothing width.
+    #[error("the G smoothing width must be positive, got {0}")]
+    SmoothG(f64),
+    /// A lobe that may light no channel.
+    #[error("lobe {0} is masked in every channel")]
+    MaskedLobe(usize),
+    /// A starting model on another layout (or lobe count) than the fit.
+    #[error("the starting model does not match the fit: {0}")]
+    Start(String),
+}
+
 impl FitOptions {
-    pub fn validate(&self) -> Result<(), String> {
+    /// Check the options' ranges.
+    pub fn validate(&self) -> Result<(), SolverError> {
         if !(1..=MAX_LOBES).contains(&self.lobes) {
-            return Err(format!(
-                "--lobes must be 1 to {MAX_LOBES}, got {}",
-                self.lobes
-            ));
+            return Err(SolverError::Lobes(self.lobes));
         }
         if self.max_sweeps == 0 {
-            return Err("--max-sweeps must be at least 1".into());
+            return Err(SolverError::MaxSweeps);
         }
         if !(self.tol >= 0.0 && self.tol.is_finite()) {
-            return Err(format!(
-                "--tol must be a non-negative number, got {}",
-                self.tol
-            ));
+            return Err(SolverError::Tolerance(self.tol));
         }
         if let Some(t) = self.d_monotone_from_deg {
             if !(0.0..=90.0).contains(&t) {
-                return Err(format!(
-                    "--d-monotone-from must be 0 to 90 degrees, got {t}"
-                ));
+                return Err(SolverError::MonotoneFrom(t));
             }
         }
         if let Some(s) = self.smooth_g {
             if !(s > 0.0 && s.is_finite()) {
-                return Err(format!("--smooth-g must be positive, got {s}"));
+                return Err(SolverError::SmoothG(s));
             }
+        }
+        if let Some(m) = (0..self.lobes).find(|&m| self.channel_mask[m] == [false; 3]) {
+            return Err(SolverError::MaskedLobe(m));
         }
         Ok(())
     }

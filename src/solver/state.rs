@@ -8,19 +8,27 @@ use rayon::prelude::*;
 /// The model's parameters in working precision.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Factors {
+    /// The tables' layout.
     pub layout: Layout,
+    /// d_C.
     pub diffuse: [f64; 3],
+    /// s_C^m per lobe.
     pub s: Vec<[f64; 3]>,
+    /// D^m per lobe.
     pub d: Vec<Vec<f64>>,
+    /// G^m per lobe.
     pub g: Vec<Vec<f64>>,
+    /// F_C per channel.
     pub f: [Vec<f64>; 3],
 }
 
 impl Factors {
+    /// Number of lobes.
     pub fn lobes(&self) -> usize {
         self.s.len()
     }
 
+    /// The model (parameters rounded to f32).
     pub fn to_model(&self) -> Model {
         let v = |t: &Vec<f64>| t.iter().map(|&x| x as f32).collect::<Vec<f32>>();
         Model {
@@ -37,6 +45,7 @@ impl Factors {
         }
     }
 
+    /// Working factors of a model.
     pub fn from_model(model: &Model) -> Self {
         let v = |t: &Vec<f32>| t.iter().map(|&x| x as f64).collect::<Vec<f64>>();
         Factors {
@@ -58,10 +67,15 @@ impl Factors {
 /// the factors by every update.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Cache {
+    /// D^m at the sample.
     pub dv: [f64; MAX_LOBES],
+    /// G^m at the incoming direction.
     pub gi: [f64; MAX_LOBES],
+    /// G^m at the outgoing direction.
     pub go: [f64; MAX_LOBES],
+    /// F_C at the sample.
     pub fv: [f64; 3],
+    /// Residual model - data per channel.
     pub r: [f64; 3],
 }
 
@@ -73,12 +87,16 @@ impl Cache {
     }
 }
 
+/// Factors plus their per-sample caches.
 pub struct State {
+    /// The working factors.
     pub factors: Factors,
+    /// One cache per sample.
     pub cache: Vec<Cache>,
 }
 
 impl State {
+    /// State with fresh caches.
     pub fn new(set: &FitSet, factors: Factors) -> Self {
         let mut s = State {
             factors,
@@ -90,16 +108,55 @@ impl State {
 
     /// Recompute every cache from the factors (removes incremental drift).
     pub fn refresh(&mut self, set: &FitSet) {
+        // Dispatch on the stencil widths once, so the per-sample loops are
+        // unrolled for the built-in layouts (same arithmetic either way).
+        match (set.d_st.width, set.f_st.width, set.gi_st.width) {
+            (2, 2, 4) => self.refresh_n::<2, 2, 4>(set),
+            (4, 2, 8) => self.refresh_n::<4, 2, 8>(set),
+            _ => self.refresh_any(set),
+        }
+    }
+
+    fn refresh_n<const WD: usize, const WF: usize, const WG: usize>(&mut self, set: &FitSet) {
+        use crate::grid::StencilTable as T;
+        let f = &self.factors;
+        let lobes = f.lobes();
+        self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
+            let (d, gi, go) = (
+                set.d_st.row::<WD>(j),
+                set.gi_st.row::<WG>(j),
+                set.go_st.row::<WG>(j),
+            );
+            for m in 0..lobes {
+                c.dv[m] = T::apply_row(d, &f.d[m]);
+                c.gi[m] = T::apply_row(gi, &f.g[m]);
+                c.go[m] = T::apply_row(go, &f.g[m]);
+            }
+            let fr = set.f_st.row::<WF>(j);
+            for ch in 0..3 {
+                c.fv[ch] = T::apply_row(fr, &f.f[ch]);
+            }
+            for ch in 0..3 {
+                let mut v = f.diffuse[ch];
+                for m in 0..lobes {
+                    v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+                }
+                c.r[ch] = v - set.y[j][ch];
+            }
+        });
+    }
+
+    fn refresh_any(&mut self, set: &FitSet) {
         let f = &self.factors;
         let lobes = f.lobes();
         self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
             for m in 0..lobes {
-                c.dv[m] = set.d_st[j].apply(&f.d[m]);
-                c.gi[m] = set.gi_st[j].apply(&f.g[m]);
-                c.go[m] = set.go_st[j].apply(&f.g[m]);
+                c.dv[m] = set.d_st.apply(j, &f.d[m]);
+                c.gi[m] = set.gi_st.apply(j, &f.g[m]);
+                c.go[m] = set.go_st.apply(j, &f.g[m]);
             }
             for ch in 0..3 {
-                c.fv[ch] = set.f_st[j].apply(&f.f[ch]);
+                c.fv[ch] = set.f_st.apply(j, &f.f[ch]);
             }
             for ch in 0..3 {
                 let mut v = f.diffuse[ch];

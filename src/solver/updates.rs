@@ -32,15 +32,18 @@ impl Scratch {
 /// One Gauss-Seidel pass over the entries of `table`, colour by colour;
 /// entries of one colour are solved in parallel. `scratch.s` must hold
 /// (S_r, S_a) for every sample; on return `scratch.delta` holds each sample's
-/// change of the interpolated value. Entries from `monotone_from` on are
-/// kept at most max(previous entry, current value): an interval holding the
-/// current value, so the clamped parabola minimum still never raises the
-/// objective, and a non-increasing tail stays non-increasing.
+/// change of the interpolated value. Entries whose theta index (k / stride;
+/// `stride` is the number of phi columns, 1 for a 1-D table) is at least
+/// `monotone_from` are kept at most max(previous entry along theta, current
+/// value): an interval holding the current value, so the clamped parabola
+/// minimum still never raises the objective, and a non-increasing tail stays
+/// non-increasing in every phi column.
 pub(crate) fn linear_pass(
     inc: &Incidence,
     table: &mut [f64],
     scratch: &mut Scratch,
     monotone_from: usize,
+    stride: usize,
 ) {
     scratch.delta.par_iter_mut().for_each(|d| *d = 0.0);
     for color in &inc.colors {
@@ -55,8 +58,9 @@ pub(crate) fn linear_pass(
                     den += om * om * sa;
                 }
                 if den > 0.0 {
-                    let upper = if k >= monotone_from && k > 0 {
-                        table[k - 1].max(table[k])
+                    let kt = k / stride;
+                    let upper = if kt >= monotone_from && kt > 0 {
+                        table[k - stride].max(table[k])
                     } else {
                         f64::INFINITY
                     };
@@ -83,31 +87,44 @@ pub(crate) fn linear_pass(
 }
 
 /// Update D^m. A_jC = s_C^m F_C G^m(theta_i) G^m(theta_o) / (cos cos).
+/// `mask` is the lobe's channel mask (masked channels have s = 0).
 pub(crate) fn update_d(
     set: &FitSet,
     st: &mut State,
     m: usize,
     scratch: &mut Scratch,
     monotone_from: usize,
+    mask: [bool; 3],
 ) -> bool {
     // A lobe whose scales are all 0 contributes nothing, so D, F and G get
     // no gradient through it and it would stay dead for good (the bilinear
     // trap: s = 0 makes D irrelevant and vice versa). Such a lobe's D is
     // instead fitted afresh to the residual as if s = 1, without changing
-    // the model; the next d, s solve switches it on if that helps.
+    // the model; the next d, s solve switches it on if that helps. Masked
+    // channels are always 0, so a lobe is dead when its unmasked s are.
     let dead = st.factors.s[m] == [0.0; 3];
     if dead {
         // Start from D = 0 so the pass fits the residual itself.
         st.factors.d[m].iter_mut().for_each(|v| *v = 0.0);
         st.cache.par_iter_mut().for_each(|c| c.dv[m] = 0.0);
     }
-    let s = if dead { [1.0; 3] } else { st.factors.s[m] };
+    let s = if dead {
+        mask.map(|on| if on { 1.0 } else { 0.0 })
+    } else {
+        st.factors.s[m]
+    };
     let coef = |c: &Cache, j: usize| {
         let p = c.gi[m] * c.go[m] * set.inv_cc[j];
         [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
     };
     fill_scratch(set, &st.cache, scratch, |c, j| coef(c, j), [true; 3]);
-    linear_pass(&set.d_inc, &mut st.factors.d[m], scratch, monotone_from);
+    linear_pass(
+        &set.d_inc,
+        &mut st.factors.d[m],
+        scratch,
+        monotone_from,
+        set.layout.d.n_phi(),
+    );
     let delta = &scratch.delta;
     st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
         let dx = delta[j];
@@ -161,6 +178,7 @@ pub(crate) fn update_f(set: &FitSet, st: &mut State, scratch: &mut [Scratch; 3])
             &mut st.factors.f[ch],
             &mut scratch[ch],
             usize::MAX,
+            1,
         );
     }
     let [d0, d1, d2] = [&scratch[0].delta, &scratch[1].delta, &scratch[2].delta];
@@ -201,8 +219,13 @@ pub(crate) fn fill_scratch(
 
 /// Update (d_C, s_C^1..s_C^M) per channel: the exact non-negative
 /// least-squares solution of a tiny system, by enumerating active sets
-/// (clamping an unconstrained solution could raise the objective).
-pub(crate) fn update_diffuse_and_scales(set: &FitSet, st: &mut State) {
+/// (clamping an unconstrained solution could raise the objective). Lobes
+/// masked for a channel are left out of its system and keep s = 0.
+pub(crate) fn update_diffuse_and_scales(
+    set: &FitSet,
+    st: &mut State,
+    mask: &[[bool; 3]; MAX_LOBES],
+) {
     let lobes = st.factors.lobes();
     let k = lobes + 1;
     // Gram matrix and right-hand side per channel: basis b_0 = 1, b_m = F D G G/(cc).
@@ -235,18 +258,35 @@ pub(crate) fn update_diffuse_and_scales(set: &FitSet, st: &mut State) {
     });
     for ch in 0..3 {
         let base = ch * (MAXK * MAXK + MAXK);
-        let gram = DMatrix::from_fn(k, k, |a, b| {
+        // Basis functions in the system: 0 (diffuse) and each unmasked lobe.
+        let active: Vec<usize> = (0..k).filter(|&a| a == 0 || mask[a - 1][ch]).collect();
+        let ka = active.len();
+        let gram = DMatrix::from_fn(ka, ka, |a, b| {
+            let (a, b) = (active[a], active[b]);
             let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
             sums[base + lo * MAXK + hi]
         });
-        let rhs = DVector::from_fn(k, |a, _| sums[base + MAXK * MAXK + a]);
-        let current: Vec<f64> = std::iter::once(st.factors.diffuse[ch])
-            .chain(st.factors.s.iter().map(|s| s[ch]))
+        let rhs = DVector::from_fn(ka, |a, _| sums[base + MAXK * MAXK + active[a]]);
+        let current: Vec<f64> = active
+            .iter()
+            .map(|&a| {
+                if a == 0 {
+                    st.factors.diffuse[ch]
+                } else {
+                    st.factors.s[a - 1][ch]
+                }
+            })
             .collect();
         let x = nnls_enumerate(&gram, &rhs, &current);
-        st.factors.diffuse[ch] = x[0];
         for m in 0..lobes {
-            st.factors.s[m][ch] = x[m + 1];
+            st.factors.s[m][ch] = 0.0;
+        }
+        for (&a, &v) in active.iter().zip(&x) {
+            if a == 0 {
+                st.factors.diffuse[ch] = v;
+            } else {
+                st.factors.s[a - 1][ch] = v;
+            }
         }
     }
     let f = &st.factors;

@@ -1,68 +1,10 @@
-//! Factor-table axes and the interpolation stencils that read them.
-//!
-//! Every factor value the model uses is a weighted sum of at most four table
-//! entries (a [`Stencil`]). The solver precomputes one stencil per sample and
-//! factor, so geometry is never recomputed during a fit, and because every
-//! interpolation is linear in the table values each element update stays a
-//! closed-form (or, for the squared G, a quartic) least-squares problem.
+//! One angle axis of a factor table: the elevation axes on [0, pi/2]
+//! ([`Axis`]) and the periodic azimuth axis on [0, 2 pi) ([`PhiAxis`]), each
+//! with its 1-D interpolation stencil.
 
+use super::stencil::Stencil;
 use serde::{Deserialize, Serialize};
-use std::f64::consts::FRAC_PI_2;
-
-/// Up to four (index, weight) pairs; unused entries have weight 0.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Stencil {
-    pub idx: [u32; 4],
-    pub w: [f64; 4],
-}
-
-impl Stencil {
-    pub fn single(i: usize) -> Self {
-        Stencil {
-            idx: [i as u32, 0, 0, 0],
-            w: [1.0, 0.0, 0.0, 0.0],
-        }
-    }
-
-    #[inline]
-    pub fn apply(&self, values: &[f64]) -> f64 {
-        self.idx
-            .iter()
-            .zip(&self.w)
-            .map(|(&i, &w)| {
-                if w != 0.0 {
-                    w * values[i as usize]
-                } else {
-                    0.0
-                }
-            })
-            .sum()
-    }
-
-    #[inline]
-    pub fn apply_f32(&self, values: &[f32]) -> f64 {
-        self.idx
-            .iter()
-            .zip(&self.w)
-            .map(|(&i, &w)| {
-                if w != 0.0 {
-                    w * values[i as usize] as f64
-                } else {
-                    0.0
-                }
-            })
-            .sum()
-    }
-
-    /// The non-zero entries.
-    pub fn entries(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
-        self.idx
-            .iter()
-            .zip(&self.w)
-            .filter(|(_, &w)| w != 0.0)
-            .map(|(&i, &w)| (i as usize, w))
-    }
-}
+use std::f64::consts::{FRAC_PI_2, TAU};
 
 /// How the nodes of a 1-D factor table sit on an angle in [0, pi/2], and how
 /// values between them are interpolated.
@@ -72,24 +14,43 @@ pub enum Axis {
     /// MERL's theta_h axis: node k at theta = (k/n)^2 * pi/2, k = 0..n-1
     /// (dense near the specular peak); linear in sqrt(theta) between nodes,
     /// constant past the last node.
-    SqrtAngle { n: usize },
+    SqrtAngle {
+        /// Number of nodes.
+        n: usize,
+    },
     /// Node k at theta = k/n * pi/2, k = 0..n-1 (MERL's 1-degree theta_d
     /// cells for n = 90); linear between nodes, constant past the last node.
-    Uniform { n: usize },
+    Uniform {
+        /// Number of nodes.
+        n: usize,
+    },
     /// n Catmull-Rom control points spanning [0, pi/2] inclusively,
     /// theta_k = k/(n-1) * pi/2, with pbrt's end conditions.
-    CatmullRom { n: usize },
+    CatmullRom {
+        /// Number of control points.
+        n: usize,
+    },
 }
 
 impl Axis {
+    /// Number of nodes.
     pub fn len(&self) -> usize {
         match *self {
             Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::CatmullRom { n } => n,
         }
     }
 
+    /// Whether the axis has no nodes (never true of a valid layout).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// Slots of this axis's stencils: 2 for the linear axes, 4 for Catmull-Rom.
+    pub fn stencil_width(&self) -> usize {
+        match self {
+            Axis::SqrtAngle { .. } | Axis::Uniform { .. } => 2,
+            Axis::CatmullRom { .. } => 4,
+        }
     }
 
     /// The angle (radians) of node k.
@@ -121,6 +82,7 @@ impl Axis {
         self.coord(FRAC_PI_2)
     }
 
+    /// The interpolation stencil of an angle.
     pub fn stencil(&self, theta: f64) -> Stencil {
         match *self {
             Axis::SqrtAngle { n } | Axis::Uniform { n } => linear_stencil(self.coord(theta), n),
@@ -128,6 +90,7 @@ impl Axis {
         }
     }
 
+    /// The interpolated table value at an angle.
     pub fn eval(&self, values: &[f64], theta: f64) -> f64 {
         self.stencil(theta).apply(values)
     }
@@ -192,10 +155,7 @@ fn linear_stencil(p: f64, n: usize) -> Stencil {
     if t > 1.0 - SNAP {
         return Stencil::single(i + 1);
     }
-    Stencil {
-        idx: [i as u32, i as u32 + 1, 0, 0],
-        w: [1.0 - t, t, 0.0, 0.0],
-    }
+    Stencil::pair(i, 1.0 - t, i + 1, t)
 }
 
 /// pbrt-v3's CatmullRomWeights on uniform nodes 0..n-1 (coordinate p):
@@ -225,15 +185,56 @@ pub fn catmull_rom_stencil(p: f64, n: usize) -> Stencil {
         w[1] -= h11;
         w[2] += h11;
     }
-    let mut st = Stencil::default();
+    // Slot k stays slot k (an unused slot keeps weight 0): the order in
+    // which sums read the slots is part of the fit's arithmetic.
+    let mut st = Stencil::empty(4);
     for (k, &wk) in w.iter().enumerate() {
         let j = i as isize - 1 + k as isize;
         if wk != 0.0 && j >= 0 && (j as usize) < n {
-            st.idx[k] = j as u32;
-            st.w[k] = wk;
+            st.set(k, j as usize, wk);
         }
     }
     st
+}
+
+/// The periodic azimuth axis of a 2-D factor table: `n` nodes at
+/// phi_k = 2 pi k / n over [0, 2 pi), linear between nodes, wrapping from
+/// the last node to the first.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PhiAxis {
+    /// Number of nodes.
+    pub n: usize,
+}
+
+impl PhiAxis {
+    /// The angle (radians) of node k.
+    pub fn node(&self, k: usize) -> f64 {
+        k as f64 / self.n as f64 * TAU
+    }
+
+    /// The two-slot linear stencil of an azimuth (any real angle; it wraps).
+    pub fn stencil(&self, phi: f64) -> Stencil {
+        let n = self.n;
+        if n == 1 {
+            return Stencil::single(0);
+        }
+        let p = (phi.rem_euclid(TAU) / TAU * n as f64).clamp(0.0, n as f64);
+        let i = (p.floor() as usize).min(n - 1);
+        let t = p - i as f64;
+        if t < SNAP {
+            return Stencil::single(i % n);
+        }
+        if t > 1.0 - SNAP {
+            return Stencil::single((i + 1) % n);
+        }
+        Stencil::pair(i, 1.0 - t, (i + 1) % n, t)
+    }
+
+    /// Weights q_k with sum_k q_k v_k = integral over [0, 2 pi) of the
+    /// interpolated table (exact: each node's hat function has area 2 pi / n).
+    pub fn quadrature_weights(&self) -> Vec<f64> {
+        vec![TAU / self.n as f64; self.n]
+    }
 }
 
 #[cfg(test)]
@@ -247,7 +248,7 @@ mod tests {
         for s in 0..=200 {
             let p = s as f64 / 200.0 * (n - 1) as f64;
             let st = catmull_rom_stencil(p, n);
-            let sum: f64 = st.w.iter().sum();
+            let sum: f64 = st.entries().map(|(_, w)| w).sum();
             assert!((sum - 1.0).abs() < 1e-12);
             assert!((st.apply(&values) - (0.3 + 0.7 * p)).abs() < 1e-12);
         }
@@ -264,6 +265,25 @@ mod tests {
             let st = axis.stencil(axis.node(k));
             assert_eq!(st.entries().collect::<Vec<_>>(), vec![(k, 1.0)]);
         }
+    }
+
+    #[test]
+    fn phi_axis_wraps_and_reproduces_nodes() {
+        let axis = PhiAxis { n: 48 };
+        for k in 0..48 {
+            let st = axis.stencil(axis.node(k));
+            assert_eq!(st.entries().collect::<Vec<_>>(), vec![(k, 1.0)]);
+            let st = axis.stencil(axis.node(k) - TAU);
+            assert_eq!(st.entries().collect::<Vec<_>>(), vec![(k, 1.0)]);
+        }
+        // Half way between the last node and 2 pi: the last node and node 0.
+        let st = axis.stencil(TAU * (47.5 / 48.0));
+        let e: Vec<_> = st.entries().collect();
+        assert_eq!(e.len(), 2);
+        assert_eq!((e[0].0, e[1].0), (47, 0));
+        assert!((e[0].1 - 0.5).abs() < 1e-12 && (e[1].1 - 0.5).abs() < 1e-12);
+        let q: f64 = axis.quadrature_weights().iter().sum();
+        assert!((q - TAU).abs() < 1e-12);
     }
 
     #[test]
