@@ -6,14 +6,17 @@
 //! [`energy`] holds the energy-compensation toolkit.
 
 pub mod baselines;
+pub mod bsdf;
 pub mod charts;
 pub mod cli;
 pub mod energy;
 pub mod evaluation;
 pub mod interp;
 pub mod metrics;
+pub mod microfacet;
 pub mod model;
 pub mod modelfile;
+pub mod nnls;
 pub mod reconstruct;
 pub mod render;
 pub mod samples;

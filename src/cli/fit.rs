@@ -314,7 +314,7 @@ fn select(
         let render_psnr_db = match reference {
             Some(r) => Some(
                 r.evaluate_model(config.max_theta, &f.result.model)
-                    .map_err(CliError::Message)?
+                    .map_err(|e| CliError::Message(e.to_string()))?
                     .0
                     .render_psnr_db,
             ),

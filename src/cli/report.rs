@@ -459,7 +459,7 @@ pub fn run(args: ReportArgs) -> CliResult {
                 image: md.image.clone(),
                 render: render_opts,
             };
-            let (eval, image) = reference.evaluate_model(config.max_theta, &fit.model)?;
+            let (eval, image) = reference.evaluate_model(config.max_theta, &fit.model).map_err(|e| e.to_string())?;
             let dir = out.join(name);
             write_png(
                 &dir.join(format!("{}.png", c.name)),
@@ -598,7 +598,7 @@ pub fn run(args: ReportArgs) -> CliResult {
                         r.eval = Some(
                             reference
                                 .evaluate_model(max_theta, &f.model)
-                                .map_err(CliError::Message)?
+                                .map_err(|e| CliError::Message(e.to_string()))?
                                 .0,
                         );
                     }
@@ -753,21 +753,23 @@ fn convergence_run(
             let mut cfg = config.clone();
             cfg.max_sweeps = k;
             let (part, _) = fit_kind(&md.samples, &cfg, c.kind, &mut |_, _| {})?;
-            let img = crate::render::render(render_opts, |wi, wo| part.model.eval(wi, wo));
+            let bsdf = crate::bsdf::NpfBxdf::new(part.model.clone()).map_err(|e| e.to_string())?;
+            let img = crate::render::render(render_opts, &bsdf);
             conv.checkpoints.push(Checkpoint {
                 sweeps: part.history.len(),
                 seconds: part.seconds,
                 objective: part.objective,
-                render_psnr_db: crate::render::psnr(&reference.image, &img)?,
+                render_psnr_db: crate::render::psnr(&reference.image, &img).map_err(|e| e.to_string())?,
             });
             k *= 2;
         }
-        let img = crate::render::render(render_opts, |wi, wo| full.model.eval(wi, wo));
+        let bsdf = crate::bsdf::NpfBxdf::new(full.model.clone()).map_err(|e| e.to_string())?;
+            let img = crate::render::render(render_opts, &bsdf);
         conv.checkpoints.push(Checkpoint {
             sweeps: n,
             seconds: full.seconds,
             objective: full.objective,
-            render_psnr_db: crate::render::psnr(&reference.image, &img)?,
+            render_psnr_db: crate::render::psnr(&reference.image, &img).map_err(|e| e.to_string())?,
         });
         Ok(conv)
     });

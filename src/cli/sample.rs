@@ -115,7 +115,7 @@ fn histogram_png(
             }
         }
     }
-    let png = encode_png(&rgb, w, h)
+    let png = crate::render::encode_png(w as u32, h as u32, &rgb)
         .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))?;
     npf_data_loaders::atomic::write_bytes_atomic(path, force, &png)?;
     Ok(())
@@ -125,38 +125,6 @@ fn histogram_png(
 fn heat(x: f64) -> [u8; 3] {
     let c = |v: f64| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
     [c(3.0 * x), c(3.0 * x - 1.0), c(3.0 * x - 2.0)]
-}
-
-/// PNG through plotters' bitmap encoder, by way of a temporary file next
-/// to nothing the user owns (the system temporary folder).
-fn encode_png(rgb: &[u8], w: usize, h: usize) -> Result<Vec<u8>, String> {
-    use plotters::prelude::*;
-    let tmp = std::env::temp_dir().join(format!(
-        "npf-sample-{}-{:x}.png",
-        std::process::id(),
-        rgb.len()
-    ));
-    let result = (|| {
-        {
-            let root = BitMapBackend::new(&tmp, (w as u32, h as u32));
-            let mut root = root;
-            use plotters::backend::DrawingBackend;
-            for y in 0..h {
-                for x in 0..w {
-                    let p = &rgb[(y * w + x) * 3..(y * w + x) * 3 + 3];
-                    root.draw_pixel(
-                        (x as i32, y as i32),
-                        RGBColor(p[0], p[1], p[2]).to_backend_color(),
-                    )
-                    .map_err(|e| e.to_string())?;
-                }
-            }
-            root.present().map_err(|e| e.to_string())?;
-        }
-        std::fs::read(&tmp).map_err(|e| e.to_string())
-    })();
-    let _ = std::fs::remove_file(&tmp);
-    result
 }
 
 pub fn run(args: SampleArgs) -> CliResult {

@@ -138,22 +138,15 @@ fn sample_height(ndf: Ndf, alpha: f64, w: V3, h: f64, u: f64) -> Option<f64> {
 /// A normal from the visible-normal distribution ∝ max(0, wi·m) D(m), for any
 /// `wi` on the sphere (upward rays hit the surface from below the horizon).
 fn sample_visible_normal(ndf: Ndf, alpha: f64, wi: V3, rng: &mut impl Rng) -> V3 {
+    if ndf == Ndf::Ggx {
+        // The one GGX visible-normal sampler (phi first, then the cap height).
+        let u = [rng.gen::<f64>(), rng.gen::<f64>()];
+        return crate::microfacet::ggx_visible_normal(alpha, wi, u);
+    }
     // Stretch to α = 1, sample there, stretch the normal back.
     let ws = normalize([alpha * wi[0], alpha * wi[1], wi[2]]);
-    let m = match ndf {
-        Ndf::Ggx => {
-            // Dupuy & Benyoub 2023: a spherical cap of height 1 + wi.z, offset by wi.
-            let phi = 2.0 * PI * rng.gen::<f64>();
-            let z = (1.0 - rng.gen::<f64>()) * (1.0 + ws[2]) - ws[2];
-            let s = (1.0 - z * z).max(0.0).sqrt();
-            [s * phi.cos() + ws[0], s * phi.sin() + ws[1], z + ws[2]]
-        }
-        Ndf::Beckmann => {
-            let (sx, sy) = beckmann_visible_slope(ws, rng);
-            [-sx, -sy, 1.0]
-        }
-    };
-    let m = [alpha * m[0], alpha * m[1], m[2]];
+    let (sx, sy) = beckmann_visible_slope(ws, rng);
+    let m = [-alpha * sx, -alpha * sy, 1.0];
     let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
     if !(l > 0.0) || !l.is_finite() {
         return [0.0, 0.0, 1.0];
