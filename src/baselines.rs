@@ -25,7 +25,7 @@ use crate::cli::fit::FitConfig;
 use crate::model::{Layout, Lobe, Model};
 use crate::samples::{FitSet, SampleOptions};
 use crate::microfacet::{ggx_d_cos2, ggx_g1_tan2};
-use crate::nnls::{nnls_enumerate, quadratic};
+use crate::nnls::nnls_enumerate;
 use crate::solver::{Executor, FitOptions, FitResult, SweepReport};
 use npf_data_loaders::{MeasuredSamples, MerlTable};
 use rayon::prelude::*;
@@ -247,7 +247,15 @@ fn ggx_solve(samples: &[GgxSample], alpha: f64) -> (GgxParams, f64) {
         let gram = nalgebra::DMatrix::from_fn(3, 3, |r, k| a[3 * r + k]);
         let rhs = nalgebra::DVector::from_column_slice(&a[9..12]);
         let x = nnls_enumerate(&gram, &rhs, &[0.0; 3]);
-        let obj = a[12] + quadratic(&gram, &rhs, &x);
+        // y'Wy - 2 b'x + x'Ax, summed in this order (the value is a small
+        // difference of large sums, so the order shows in the last digits).
+        let mut obj = a[12];
+        for i in 0..3 {
+            obj -= 2.0 * a[9 + i] * x[i];
+            for j in 0..3 {
+                obj += x[i] * a[3 * i + j] * x[j];
+            }
+        }
         p.kd[c] = x[0];
         p.ks[c] = x[1] + x[2];
         p.f0[c] = if p.ks[c] > 0.0 { x[1] / p.ks[c] } else { 1.0 };

@@ -607,3 +607,176 @@ fn chi_square_helper_is_calibrated() {
     assert!((gamma_q(5.0, 23.209_251_158_954_36 / 2.0) - 0.01).abs() < 1e-9);
     assert!((gamma_q(50.0, 124.342_113_404_3 / 2.0) - 0.05).abs() < 1e-8);
 }
+
+// ---- The Bsdf interface: every implementation (factor model, GGX +
+// Lambert, measured table) draws what its pdf says and weighs by f cos / pdf.
+
+use npf::bsdf::{Bsdf, BsdfSample};
+use npf::microfacet::GgxParams;
+
+fn ggx(alpha: f64) -> GgxParams {
+    GgxParams {
+        kd: [0.05, 0.08, 0.12],
+        ks: [1.0, 0.9, 0.8],
+        f0: [0.95, 0.64, 0.54],
+        alpha,
+    }
+}
+
+fn implementations() -> Vec<(&'static str, Box<dyn Bsdf + Sync>)> {
+    let table = npf::synth::GgxLambert {
+        kd: [0.05, 0.08, 0.12],
+        f0: [0.95, 0.64, 0.54],
+        alpha: 0.2,
+    }
+    .table();
+    vec![
+        ("factor", Box::new(NpfBxdf::new(three_lobes()).unwrap())),
+        ("ggx-0.1", Box::new(ggx(0.1))),
+        ("ggx-0.4", Box::new(ggx(0.4))),
+        ("merl", Box::new(table)),
+    ]
+}
+
+/// Stratified random numbers, `k` x `k` for the direction, `uc` cycled.
+fn strata(k: usize) -> impl Iterator<Item = (f64, [f64; 2])> {
+    (0..k * k).map(move |i| {
+        let (a, b) = (i % k, i / k);
+        let uc = ((i * 7919) % 1000) as f64 / 1000.0;
+        (uc, [(a as f64 + 0.5) / k as f64, (b as f64 + 0.5) / k as f64])
+    })
+}
+
+#[test]
+fn every_bsdf_sample_agrees_with_its_pdf_and_eval() {
+    for (name, b) in implementations() {
+        for theta_o in [0.0, 45.0, 80.0] {
+            let wo = wo_at(theta_o);
+            let mut drawn = 0;
+            for (uc, u) in strata(64) {
+                let Some(s): Option<BsdfSample> = b.sample(wo, uc, u) else {
+                    continue;
+                };
+                drawn += 1;
+                assert!(s.wi[2] > 0.0 && s.pdf > 0.0, "{name}: {s:?}");
+                let n = (s.wi[0].powi(2) + s.wi[1].powi(2) + s.wi[2].powi(2)).sqrt();
+                assert!((n - 1.0).abs() < 1e-12, "{name}: |wi| = {n}");
+                let pdf = b.pdf(wo, s.wi);
+                assert!((s.pdf - pdf).abs() <= 1e-12 * pdf, "{name}: {} vs {pdf}", s.pdf);
+                assert_eq!(s.f, b.eval(wo, s.wi), "{name}");
+                for c in 0..3 {
+                    let w = s.f[c] * s.wi[2] / s.pdf;
+                    assert!((s.weight[c] - w).abs() <= 1e-12 * w.abs(), "{name}");
+                    assert!(s.f[c] >= 0.0, "{name}: negative value {s:?}");
+                }
+            }
+            assert!(drawn > 64 * 64 / 2, "{name} at {theta_o}: only {drawn} draws");
+            // Outside the hemisphere: nothing, and no panic on odd numbers.
+            assert!(b.sample([0.0, 0.6, -0.8], 0.5, [0.5, 0.5]).is_none());
+            assert_eq!(b.pdf(wo, [0.0, 0.6, -0.8]), 0.0);
+            let _ = b.sample(wo, f64::NAN, [2.0, -1.0]);
+        }
+    }
+}
+
+/// The pdf integrates to 1 minus the mass the sampler loses below the
+/// horizon (that mass counted from stratified draws).
+#[test]
+fn every_bsdf_pdf_integrates_to_one_minus_its_lost_mass() {
+    for (name, b) in implementations() {
+        for theta_o in [0.0, 45.0, 80.0] {
+            let wo = wo_at(theta_o);
+            let k = 400;
+            let lost = strata(k).filter(|&(uc, u)| b.sample(wo, uc, u).is_none()).count() as f64
+                / (k * k) as f64;
+            // Refine around the mirror direction, where the GGX peak is.
+            let th = panel_edges(0.0, PI / 2.0, 96, &[theta_o.to_radians()]);
+            let ph = panel_edges(-PI, PI, 96, &[PI, -PI]);
+            let total = integrate(&|wi| b.pdf(wo, wi), &th, &ph);
+            eprintln!("{name:8} theta_o {theta_o:4}: integral {total:.6}, lost {lost:.6}");
+            assert!((total - (1.0 - lost)).abs() < 2e-3, "{name} at {theta_o}: {total} + {lost}");
+        }
+    }
+}
+
+/// Chi-square of draws from `draw` against `pdf` on a 16 x 32 (theta_i,
+/// phi_i) grid, plus one cell for the lost draws; cells expecting fewer
+/// than 5 are pooled.
+fn grid_p_value(draw: &dyn Bsdf, pdf: &dyn Bsdf, wo: Vec3, n: usize, seed: u64) -> f64 {
+    let (nt, np) = (16, 32);
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let mut obs = vec![0.0; nt * np + 1];
+    for _ in 0..n {
+        let Some(s) = draw.sample(wo, rng.gen(), [rng.gen(), rng.gen()]) else {
+            obs[nt * np] += 1.0;
+            continue;
+        };
+        let t = s.wi[2].clamp(0.0, 1.0).acos();
+        let p = s.wi[1].atan2(s.wi[0]).rem_euclid(2.0 * PI);
+        let i = ((t / (PI / 2.0) * nt as f64) as usize).min(nt - 1);
+        let j = ((p / (2.0 * PI) * np as f64) as usize).min(np - 1);
+        obs[i * np + j] += 1.0;
+    }
+    let mut expected = Vec::with_capacity(nt * np + 1);
+    for i in 0..nt {
+        for j in 0..np {
+            let cell = |k: usize, m: usize, span: f64| {
+                panel_edges(k as f64 * span / m as f64, (k + 1) as f64 * span / m as f64, 6, &[])
+            };
+            let (th, ph) = (cell(i, nt, PI / 2.0), cell(j, np, 2.0 * PI));
+            expected.push(n as f64 * integrate(&|wi| pdf.pdf(wo, wi), &th, &ph));
+        }
+    }
+    let inside: f64 = expected.iter().sum();
+    expected.push((n as f64 - inside).max(0.0));
+    let (mut chi2, mut dof) = (0.0, 0usize);
+    let (mut pool_e, mut pool_o) = (0.0, 0.0);
+    for (e, o) in expected.iter().zip(&obs) {
+        if *e < 5.0 {
+            pool_e += e;
+            pool_o += o;
+        } else {
+            chi2 += (o - e).powi(2) / e;
+            dof += 1;
+        }
+    }
+    if pool_e >= 5.0 {
+        chi2 += (pool_o - pool_e).powi(2) / pool_e;
+        dof += 1;
+    }
+    gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
+}
+
+#[test]
+fn chi_square_ggx_sampler_matches_its_pdf() {
+    let cases: Vec<(f64, f64)> = [0.1, 0.4]
+        .iter()
+        .flat_map(|&a| [0.0, 45.0, 80.0].map(|t| (a, t)))
+        .collect();
+    let level = 1.0 - (1.0 - 0.01f64).powf(1.0 / cases.len() as f64);
+    for (k, &(alpha, theta_o)) in cases.iter().enumerate() {
+        let b = ggx(alpha);
+        let p = grid_p_value(&b, &b, wo_at(theta_o), 300_000, 40 + k as u64);
+        eprintln!("chi2 ggx alpha {alpha} theta_o {theta_o}: p = {p:.4}");
+        assert!(p > level, "GGX alpha {alpha} at {theta_o} deg: p = {p:.3e}");
+    }
+    // And the same test rejects a slightly wrong pdf (alpha 0.3 vs 0.33).
+    let p_bad = grid_p_value(&ggx(0.3), &ggx(0.33), wo_at(30.0), 300_000, 7);
+    assert!(p_bad < 1e-6, "a wrong pdf passed: p = {p_bad}");
+}
+
+/// The trait's view of the factor sampler is its inherent one, with the
+/// lost draws as `None`.
+#[test]
+fn factor_bsdf_trait_matches_the_inherent_sampler() {
+    let b = NpfBxdf::new(three_lobes()).unwrap();
+    for theta_o in [0.0, 60.0, 85.0] {
+        let wo = wo_at(theta_o);
+        for (uc, u) in strata(32) {
+            let inherent = b.sample(wo, uc, u);
+            let via = Bsdf::sample(&b, wo, uc, u);
+            assert_eq!(via, Some(inherent).filter(|s| !s.is_lost()));
+            assert_eq!(Bsdf::eval(&b, wo, inherent.wi), b.model().eval(inherent.wi, wo));
+        }
+    }
+}
