@@ -27,8 +27,9 @@ const VIEW_MAX_DEG: f64 = 89.0;
 /// Every component with mass is chosen with at least this probability
 /// (before renormalisation), so the mixture pdf covers all of f.
 pub const SELECTION_FLOOR: f64 = 0.01;
-/// Stratified grid (per side) of the albedo estimates behind the selection.
-const ALBEDO_GRID: usize = 32;
+/// Strata in u of the albedo quadrature behind the selection (twice as many
+/// in phi_h): 48 puts five nodes inside a lobe of GGX roughness 0.02.
+const ALBEDO_GRID: usize = 48;
 /// Rec. 709 luminance, which weighs the three channels into one selection.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -138,38 +139,20 @@ impl NpfBxdf {
         self.model.diffuse.iter().any(|&d| d > 0.0)
     }
 
-    /// Component estimates of the directional albedo (luminance) at wo:
-    /// exact for the diffuse term, stratified Monte Carlo with each lobe's
-    /// own half-vector sampling for the lobes.
+    /// Component estimates of the directional albedo (luminance) at
+    /// theta_o: exact for the diffuse term, by the one albedo quadrature
+    /// ([`super::half_vector_quadrature`], coarse: ALBEDO_GRID strata in u)
+    /// for the lobes, all lobes in one pass through [`Model::lobe_terms`].
     fn albedo_estimates(&self, theta_o: f64) -> Vec<f64> {
-        let wo = [theta_o.sin(), 0.0, theta_o.cos()];
-        let mut a = vec![0.0; self.components()];
-        a[0] = luminance(self.model.diffuse.map(f64::from)) * PI;
-        for (m, dist) in self.lobes.iter().enumerate() {
-            let Some(dist) = dist else { continue };
-            let mut sum = 0.0;
-            for i in 0..ALBEDO_GRID {
-                for j in 0..ALBEDO_GRID {
-                    let u = [
-                        (i as f64 + 0.5) / ALBEDO_GRID as f64,
-                        (j as f64 + 0.5) / ALBEDO_GRID as f64,
-                    ];
-                    let Some(wi) = sample_half_vector(dist, wo, u) else {
-                        continue;
-                    };
-                    let Some((h, t)) = half_vector(wi, wo) else {
-                        continue;
-                    };
-                    let pdf = lobe_pdf(dist, t, h[2], dot(wo, h));
-                    if pdf > 0.0 {
-                        let f = self.lobe_value(m, wi, wo);
-                        sum += luminance(f).max(0.0) * wi[2] / pdf;
-                    }
-                }
-            }
-            a[m + 1] = sum / (ALBEDO_GRID * ALBEDO_GRID) as f64;
-        }
-        a
+        let lobes = self.model.lobes.len();
+        let a = super::half_vector_quadrature(theta_o, ALBEDO_GRID, 2 * ALBEDO_GRID, lobes, |wo, wi, w, acc| {
+            self.model.lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
+                acc[m] += luminance(t).max(0.0) * w;
+            });
+        });
+        std::iter::once(luminance(self.model.diffuse.map(f64::from)) * PI)
+            .chain(a)
+            .collect()
     }
 
     fn selection_table(&self) -> Vec<f64> {
@@ -241,21 +224,6 @@ impl NpfBxdf {
         (0..self.components())
             .map(|c| self.selection_at(row, c))
             .collect()
-    }
-
-    /// The specular part of lobe m alone (per channel, 1/sr, unclamped):
-    /// the model's own term ([`Model::lobe_terms`]).
-    fn lobe_value(&self, m: usize, wi: Vec3, wo: Vec3) -> [f64; 3] {
-        let mut v = [0.0; 3];
-        if wi[2] > 0.0 && wo[2] > 0.0 {
-            self.model
-                .lobe_terms(&Angles::from_directions(wi, wo), |k, t| {
-                    if k == m {
-                        v = t;
-                    }
-                });
-        }
-        v
     }
 
     /// BRDF value f(wo, wi) per channel (1/sr): exactly [`Model::eval`]

@@ -162,14 +162,35 @@ pub(crate) fn reflect(wo: Vec3, h: Vec3) -> Vec3 {
 }
 
 /// Directional albedo of a BSDF at view angle `theta_o` (radians): the
-/// integral of f(wo, wi) cos theta_i over the incident hemisphere, by a
-/// fixed midpoint grid over the half vector h (wi = 2 (wo.h) h - wo,
-/// dOmega_i = 4 (wo.h) dOmega_h) with theta_h = (pi/2) u^2 (the MERL
-/// spacing, fine near the specular peak: the first node is 0.0014 degrees
-/// off it), 160 strata in u and 320 in phi_h. The one deterministic albedo
-/// quadrature of npf (the comparison's, and its tests').
+/// integral of f(wo, wi) cos theta_i over the incident hemisphere by
+/// [`half_vector_quadrature`] with 160 strata in u and 320 in phi_h (the
+/// comparison's albedo, and its tests').
 pub fn albedo(theta_o: f64, bsdf: &(dyn Bsdf + Sync)) -> [f64; 3] {
-    let (nu, nphi) = (160usize, 320usize);
+    let a = half_vector_quadrature(theta_o, 160, 320, 3, |wo, wi, w, acc| {
+        let v = bsdf.eval(wo, wi);
+        for c in 0..3 {
+            acc[c] += v[c] * w;
+        }
+    });
+    [a[0], a[1], a[2]]
+}
+
+/// The one directional-albedo quadrature of npf: a fixed midpoint grid
+/// over the half vector h at view wo = (sin theta_o, 0, cos theta_o), with
+/// wi = 2 (wo.h) h - wo and dOmega_i = 4 (wo.h) dOmega_h, theta_h = (pi/2)
+/// u^2 (the MERL spacing, fine near the specular peak: with 160 strata the
+/// first node is 0.0014 degrees off it), `nu` strata in u and `nphi` in
+/// phi_h. At every node with wi above the horizon it calls `add(wo, wi,
+/// weight, acc)`, where weight = cos theta_i dOmega_i and `acc` holds
+/// `width` sums (channels, or lobes); rows are summed in order, so the
+/// result does not depend on the thread count.
+pub fn half_vector_quadrature(
+    theta_o: f64,
+    nu: usize,
+    nphi: usize,
+    width: usize,
+    add: impl Fn(Vec3, Vec3, f64, &mut [f64]) + Sync,
+) -> Vec<f64> {
     let wo = spherical(theta_o, 0.0);
     let dphi = 2.0 * PI / nphi as f64;
     let du = 1.0 / nu as f64;
@@ -180,7 +201,7 @@ pub fn albedo(theta_o: f64, bsdf: &(dyn Bsdf + Sync)) -> [f64; 3] {
             let theta_h = std::f64::consts::FRAC_PI_2 * u * u;
             // d theta_h = pi u du.
             let w_theta = theta_h.sin() * PI * u * du * dphi;
-            let mut acc = [0.0; 3];
+            let mut acc = vec![0.0; width];
             for b in 0..nphi {
                 let h = spherical(theta_h, (b as f64 + 0.5) * dphi);
                 let oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
@@ -195,15 +216,16 @@ pub fn albedo(theta_o: f64, bsdf: &(dyn Bsdf + Sync)) -> [f64; 3] {
                 if wi[2] <= 0.0 {
                     continue;
                 }
-                let v = bsdf.eval(wo, wi);
-                let w = wi[2] * 4.0 * oh * w_theta;
-                for c in 0..3 {
-                    acc[c] += v[c] * w;
-                }
+                add(wo, wi, wi[2] * 4.0 * oh * w_theta, &mut acc);
             }
             acc
         })
         .collect::<Vec<_>>()
         .into_iter()
-        .fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+        .fold(vec![0.0; width], |mut t, row| {
+            for (t, r) in t.iter_mut().zip(row) {
+                *t += r;
+            }
+            t
+        })
 }
