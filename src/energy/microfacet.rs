@@ -9,7 +9,9 @@ use std::f64::consts::PI;
 /// Normal distribution of the microfacets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Ndf {
+    /// GGX (Trowbridge-Reitz); its D is `crate::microfacet`'s.
     Ggx,
+    /// Beckmann.
     Beckmann,
 }
 

@@ -32,22 +32,30 @@ pub enum Surface {
 /// One simulated configuration.
 #[derive(Clone, Debug)]
 pub struct SimConfig {
+    /// The microsurface simulated.
     pub surface: Surface,
+    /// Its normal distribution.
     pub ndf: Ndf,
+    /// Its roughness.
     pub alpha: f64,
     /// Incidence angle from the normal, radians.
     pub theta: f64,
     /// F0 (conductor) or ρ (diffuse) values, all scored by the same walks.
     pub reflectances: Vec<f64>,
+    /// Paths traced.
     pub paths: usize,
 }
 
 /// Mean energy per order bin and in total, with standard errors.
 #[derive(Clone, Debug, Default)]
 pub struct OrderEnergies {
+    /// Mean energy per scattering order.
     pub mean: [f64; ORDER_BINS],
+    /// Standard error per scattering order.
     pub stderr: [f64; ORDER_BINS],
+    /// Mean total energy.
     pub total: f64,
+    /// Standard error of the total.
     pub total_stderr: f64,
 }
 
