@@ -484,10 +484,23 @@ fn chi2_p_value(b: &NpfBxdf, wo: Vec3, n: usize, seed: u64) -> f64 {
         let j = (((ph + PI) / (2.0 * PI) * PHI_CELLS as f64) as usize).min(PHI_CELLS - 1);
         observed[band * PHI_CELLS + j] += 1.0;
     }
-    let (mut chi2, mut dof) = (0.0, 0usize);
-    let (mut pool_e, mut pool_o) = (0.0, 0.0);
     for (e, o) in expected.iter().zip(&observed) {
         assert!(!(*e == 0.0 && *o > 0.0), "draws in a cell of zero pdf");
+    }
+    let total_e: f64 = expected.iter().sum();
+    assert!(
+        (total_e / n as f64 - 1.0).abs() < 1e-3,
+        "expected counts sum to {total_e} of {n}"
+    );
+    pooled_p_value(&expected, &observed)
+}
+
+/// The chi-square p-value of observed against expected counts, cells
+/// expecting fewer than 5 pooled into one.
+fn pooled_p_value(expected: &[f64], observed: &[f64]) -> f64 {
+    let (mut chi2, mut dof) = (0.0, 0usize);
+    let (mut pool_e, mut pool_o) = (0.0, 0.0);
+    for (e, o) in expected.iter().zip(observed) {
         if *e < 5.0 {
             pool_e += e;
             pool_o += o;
@@ -500,11 +513,6 @@ fn chi2_p_value(b: &NpfBxdf, wo: Vec3, n: usize, seed: u64) -> f64 {
         chi2 += (pool_o - pool_e).powi(2) / pool_e;
         dof += 1;
     }
-    let total_e: f64 = expected.iter().sum();
-    assert!(
-        (total_e / n as f64 - 1.0).abs() < 1e-3,
-        "expected counts sum to {total_e} of {n}"
-    );
     gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
 }
 
@@ -540,64 +548,8 @@ fn chi_square_detects_a_wrong_pdf() {
     assert!(p_good > 1e-3, "{p_good}");
     // A model that differs only a little: alpha 0.2 vs 0.22.
     let other = NpfBxdf::new(known_factor_model(Layout::default(), &[0.22])).unwrap();
-    let mixed = Mixed {
-        draw: &good,
-        pdf: &other,
-    };
-    let p_bad = mixed.p_value(wo);
+    let p_bad = grid_p_value(&good, &other, wo, 200_000, 9);
     assert!(p_bad < 1e-6, "a wrong pdf passed: p = {p_bad}");
-}
-
-struct Mixed<'a> {
-    draw: &'a NpfBxdf,
-    pdf: &'a NpfBxdf,
-}
-
-impl Mixed<'_> {
-    /// Chi-square of draws from one model against another's pdf, on a
-    /// fixed 16 x 32 grid.
-    fn p_value(&self, wo: Vec3) -> f64 {
-        let n = 200_000;
-        let (nt, np) = (16, 32);
-        let mut rng = Pcg64::seed_from_u64(9);
-        let mut obs = vec![0.0; nt * np + 1];
-        for _ in 0..n {
-            let s = self.draw.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
-            if s.is_lost() {
-                obs[nt * np] += 1.0;
-                continue;
-            }
-            let t = s.wi[2].clamp(0.0, 1.0).acos();
-            let p = s.wi[1].atan2(s.wi[0]).rem_euclid(2.0 * PI);
-            let i = ((t / (PI / 2.0) * nt as f64) as usize).min(nt - 1);
-            let j = ((p / (2.0 * PI) * np as f64) as usize).min(np - 1);
-            obs[i * np + j] += 1.0;
-        }
-        let mut chi2 = 0.0;
-        let mut dof = 0;
-        for i in 0..nt {
-            for j in 0..np {
-                let th = panel_edges(
-                    i as f64 * PI / 2.0 / nt as f64,
-                    (i + 1) as f64 * PI / 2.0 / nt as f64,
-                    4,
-                    &[],
-                );
-                let ph = panel_edges(
-                    j as f64 * 2.0 * PI / np as f64,
-                    (j + 1) as f64 * 2.0 * PI / np as f64,
-                    4,
-                    &[],
-                );
-                let e = n as f64 * integrate(&|wi| self.pdf.pdf(wo, wi), &th, &ph);
-                if e >= 5.0 {
-                    chi2 += (obs[i * np + j] - e).powi(2) / e;
-                    dof += 1;
-                }
-            }
-        }
-        gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
-    }
 }
 
 #[test]
@@ -729,22 +681,7 @@ fn grid_p_value(draw: &dyn Bsdf, pdf: &dyn Bsdf, wo: Vec3, n: usize, seed: u64) 
     }
     let inside: f64 = expected.iter().sum();
     expected.push((n as f64 - inside).max(0.0));
-    let (mut chi2, mut dof) = (0.0, 0usize);
-    let (mut pool_e, mut pool_o) = (0.0, 0.0);
-    for (e, o) in expected.iter().zip(&obs) {
-        if *e < 5.0 {
-            pool_e += e;
-            pool_o += o;
-        } else {
-            chi2 += (o - e).powi(2) / e;
-            dof += 1;
-        }
-    }
-    if pool_e >= 5.0 {
-        chi2 += (pool_o - pool_e).powi(2) / pool_e;
-        dof += 1;
-    }
-    gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
+    pooled_p_value(&expected, &obs)
 }
 
 #[test]
