@@ -416,10 +416,7 @@ pub fn fit_kind(
 
 /// A MERL table of an analytic GGX + Lambert BRDF (for tests and demos).
 pub fn ggx_table(p: &GgxParams) -> MerlTable {
-    MerlTable::from_fn(|th, td, pd| {
-        let a = npf_data_loaders::geometry::Angles::from_half_diff(th, 0.0, td, pd);
-        (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| p.eval_angles(&a))
-    })
+    crate::bsdf::to_merl(p)
 }
 
 /// Fit any model kind as `npf fit` does: in a pool of `config.threads`

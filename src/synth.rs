@@ -38,7 +38,7 @@ impl GgxLambert {
 
     /// The BRDF tabulated as a MERL table.
     pub fn table(&self) -> MerlTable {
-        MerlTable::from_fn(|th, td, pd| self.eval_angles(&Angles::from_half_diff(th, 0.0, td, pd)))
+        crate::bsdf::to_merl(&self.params())
     }
 }
 

@@ -26,6 +26,7 @@ mod measured;
 pub use factor::{NpfBxdf, GL4_W, GL4_X, NEGLIGIBLE_CELL, SELECTION_FLOOR, SUBCELLS, VIEW_NODES};
 
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
+use npf_data_loaders::MerlTable;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
@@ -123,6 +124,18 @@ pub trait Bsdf {
     fn eval_angles(&self, a: &Angles) -> [f64; 3] {
         self.eval(spherical(a.theta_o, a.phi_o), spherical(a.theta_i, a.phi_i))
     }
+}
+
+/// Any BSDF as a MERL table: [`Bsdf::eval_angles`] at every cell's
+/// lower-edge node (the convention of MERL's reader and of
+/// `nbrdf2merl.py`); cells whose node lies at or below the horizon are
+/// missing (-1). The one tabulation of npf (synthetic tables, the GGX
+/// baseline's table, reconstructions).
+pub fn to_merl(bsdf: &(dyn Bsdf + Sync)) -> MerlTable {
+    MerlTable::from_fn(|th, td, pd| {
+        let a = Angles::from_half_diff(th, 0.0, td, pd);
+        (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| bsdf.eval_angles(&a))
+    })
 }
 
 /// Clamps a random number into [0, 1] (NaN to 0).
