@@ -717,3 +717,39 @@ fn factor_bsdf_trait_matches_the_inherent_sampler() {
         }
     }
 }
+
+/// The clamp the sampler used to miss: where Catmull-Rom G undershoots
+/// below 0, a lobe's term is negative; the BSDF's value is `Model::eval`
+/// (clamped at 0), so no value and no weight is negative.
+#[test]
+fn factor_bsdf_values_are_clamped_where_catmull_rom_g_undershoots() {
+    let mut m = known_factor_model(Layout::default(), &[0.3]);
+    m.diffuse = [0.0; 3];
+    // Pairs of zero control points between ones: the spline dips below 0.
+    for (k, g) in m.lobes[0].g.iter_mut().enumerate() {
+        *g = if k % 3 == 0 { 1.0 } else { 0.0 };
+    }
+    let b = NpfBxdf::new(m.clone()).unwrap();
+    let mut negative = 0;
+    for i in 0..60 {
+        for o in 0..60 {
+            let wi = spherical(0.013 * i as f64 + 0.005, 0.4);
+            let wo = spherical(0.013 * o as f64 + 0.005, 2.9);
+            let a = npf::loaders::geometry::Angles::from_directions(wi, wo);
+            let mut unclamped = 0.0;
+            m.lobe_terms(&a, |_, t| unclamped += t[0]);
+            let v = Bsdf::eval(&b, wo, wi);
+            assert!(v.iter().all(|&x| x >= 0.0), "{v:?}");
+            if unclamped < 0.0 {
+                negative += 1;
+                assert_eq!(v[0], 0.0);
+            }
+        }
+    }
+    assert!(negative > 0, "the test model never undershoots");
+    for (uc, u) in strata(32) {
+        if let Some(s) = Bsdf::sample(&b, wo_at(40.0), uc, u) {
+            assert!(s.weight.iter().all(|&w| w >= 0.0), "{s:?}");
+        }
+    }
+}
