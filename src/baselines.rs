@@ -22,10 +22,10 @@
 //!   layout (the analytic parameters are kept in the file's provenance).
 
 use crate::cli::fit::FitConfig;
-use crate::model::{Layout, Lobe, Model};
-use crate::samples::{FitSet, SampleOptions};
 use crate::microfacet::{ggx_d_cos2, ggx_g1_tan2};
+use crate::model::{Layout, Lobe, Model};
 use crate::nnls::nnls_enumerate;
+use crate::samples::{FitSet, SampleOptions};
 use crate::solver::{Executor, FitOptions, FitResult, SweepReport};
 use npf_data_loaders::{MeasuredSamples, MerlTable};
 use rayon::prelude::*;

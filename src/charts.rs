@@ -63,7 +63,8 @@ fn save_both(
         png(root.clone()).map_err(|m| fail("png", m))?;
         root.present().map_err(|x| fail("png", e(x)))?;
     }
-    let bytes = crate::render::encode_png(size.0, size.1, &buf).map_err(|m| fail("png", m.to_string()))?;
+    let bytes =
+        crate::render::encode_png(size.0, size.1, &buf).map_err(|m| fail("png", m.to_string()))?;
     write_bytes_atomic(&stem.with_extension("png"), true, &bytes)?;
     Ok(())
 }

@@ -36,8 +36,14 @@ pub enum EvalError {
 }
 
 /// Numerical PSNR (dB) of a BSDF over the samples within the cut-off.
-pub fn numeric_psnr(samples: &MeasuredSamples, max_theta_deg: f64, bsdf: &(dyn Bsdf + Sync)) -> f64 {
-    psnr_of(&crate::metrics::sums(samples, max_theta_deg, |a| bsdf.eval_angles(a)))
+pub fn numeric_psnr(
+    samples: &MeasuredSamples,
+    max_theta_deg: f64,
+    bsdf: &(dyn Bsdf + Sync),
+) -> f64 {
+    psnr_of(&crate::metrics::sums(samples, max_theta_deg, |a| {
+        bsdf.eval_angles(a)
+    }))
 }
 
 fn psnr_of(s: &crate::metrics::Sums) -> f64 {
@@ -62,10 +68,7 @@ pub struct AlbedoError {
 }
 
 /// Albedo of both BSDFs at every [`ALBEDO_VIEWS_DEG`] angle.
-pub fn albedo_errors(
-    reference: &(dyn Bsdf + Sync),
-    model: &(dyn Bsdf + Sync),
-) -> Vec<AlbedoError> {
+pub fn albedo_errors(reference: &(dyn Bsdf + Sync), model: &(dyn Bsdf + Sync)) -> Vec<AlbedoError> {
     ALBEDO_VIEWS_DEG
         .iter()
         .map(|&deg| {

@@ -127,7 +127,9 @@ impl GgxParams {
         Model {
             layout,
             diffuse: self.kd.map(|k| (k / PI) as f32),
-            fresnel: self.f0.map(|f0| tabulate(layout.f, &|t| schlick(f0, t.cos()))),
+            fresnel: self
+                .f0
+                .map(|f0| tabulate(layout.f, &|t| schlick(f0, t.cos()))),
             lobes: vec![Lobe {
                 s: self.ks.map(|k| (k / 4.0) as f32),
                 d: tabulate(layout.d, &|t| ggx_d(t, alpha)),
@@ -157,7 +159,9 @@ mod tests {
             for b in 0..m {
                 let p = (b as f64 + 0.5) / m as f64 * 2.0 * PI;
                 let h = [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()];
-                sum += ggx_visible_normal_pdf(alpha, w, h) * t.sin() * (PI / 2.0 / n as f64)
+                sum += ggx_visible_normal_pdf(alpha, w, h)
+                    * t.sin()
+                    * (PI / 2.0 / n as f64)
                     * (2.0 * PI / m as f64);
             }
         }

@@ -2,8 +2,8 @@
 //! tests, the demo and the benchmarks' sanity checks fit, so nothing needs
 //! measured data.
 
-use crate::model::{Layout, Lobe, Model};
 use crate::microfacet::{ggx_d, ggx_g1, schlick, tabulate, GgxParams};
+use crate::model::{Layout, Lobe, Model};
 use npf_data_loaders::geometry::Angles;
 use npf_data_loaders::MerlTable;
 

@@ -595,7 +595,10 @@ fn strata(k: usize) -> impl Iterator<Item = (f64, [f64; 2])> {
     (0..k * k).map(move |i| {
         let (a, b) = (i % k, i / k);
         let uc = ((i * 7919) % 1000) as f64 / 1000.0;
-        (uc, [(a as f64 + 0.5) / k as f64, (b as f64 + 0.5) / k as f64])
+        (
+            uc,
+            [(a as f64 + 0.5) / k as f64, (b as f64 + 0.5) / k as f64],
+        )
     })
 }
 
@@ -614,7 +617,11 @@ fn every_bsdf_sample_agrees_with_its_pdf_and_eval() {
                 let n = (s.wi[0].powi(2) + s.wi[1].powi(2) + s.wi[2].powi(2)).sqrt();
                 assert!((n - 1.0).abs() < 1e-12, "{name}: |wi| = {n}");
                 let pdf = b.pdf(wo, s.wi);
-                assert!((s.pdf - pdf).abs() <= 1e-12 * pdf, "{name}: {} vs {pdf}", s.pdf);
+                assert!(
+                    (s.pdf - pdf).abs() <= 1e-12 * pdf,
+                    "{name}: {} vs {pdf}",
+                    s.pdf
+                );
                 assert_eq!(s.f, b.eval(wo, s.wi), "{name}");
                 for c in 0..3 {
                     let w = s.f[c] * s.wi[2] / s.pdf;
@@ -622,7 +629,10 @@ fn every_bsdf_sample_agrees_with_its_pdf_and_eval() {
                     assert!(s.f[c] >= 0.0, "{name}: negative value {s:?}");
                 }
             }
-            assert!(drawn > 64 * 64 / 2, "{name} at {theta_o}: only {drawn} draws");
+            assert!(
+                drawn > 64 * 64 / 2,
+                "{name} at {theta_o}: only {drawn} draws"
+            );
             // Outside the hemisphere: nothing, and no panic on odd numbers.
             assert!(b.sample([0.0, 0.6, -0.8], 0.5, [0.5, 0.5]).is_none());
             assert_eq!(b.pdf(wo, [0.0, 0.6, -0.8]), 0.0);
@@ -639,14 +649,19 @@ fn every_bsdf_pdf_integrates_to_one_minus_its_lost_mass() {
         for theta_o in [0.0, 45.0, 80.0] {
             let wo = wo_at(theta_o);
             let k = 400;
-            let lost = strata(k).filter(|&(uc, u)| b.sample(wo, uc, u).is_none()).count() as f64
+            let lost = strata(k)
+                .filter(|&(uc, u)| b.sample(wo, uc, u).is_none())
+                .count() as f64
                 / (k * k) as f64;
             // Refine around the mirror direction, where the GGX peak is.
             let th = panel_edges(0.0, PI / 2.0, 96, &[theta_o.to_radians()]);
             let ph = panel_edges(-PI, PI, 96, &[PI, -PI]);
             let total = integrate(&|wi| b.pdf(wo, wi), &th, &ph);
             eprintln!("{name:8} theta_o {theta_o:4}: integral {total:.6}, lost {lost:.6}");
-            assert!((total - (1.0 - lost)).abs() < 2e-3, "{name} at {theta_o}: {total} + {lost}");
+            assert!(
+                (total - (1.0 - lost)).abs() < 2e-3,
+                "{name} at {theta_o}: {total} + {lost}"
+            );
         }
     }
 }
@@ -673,7 +688,12 @@ fn grid_p_value(draw: &dyn Bsdf, pdf: &dyn Bsdf, wo: Vec3, n: usize, seed: u64) 
     for i in 0..nt {
         for j in 0..np {
             let cell = |k: usize, m: usize, span: f64| {
-                panel_edges(k as f64 * span / m as f64, (k + 1) as f64 * span / m as f64, 6, &[])
+                panel_edges(
+                    k as f64 * span / m as f64,
+                    (k + 1) as f64 * span / m as f64,
+                    6,
+                    &[],
+                )
             };
             let (th, ph) = (cell(i, nt, PI / 2.0), cell(j, np, 2.0 * PI));
             expected.push(n as f64 * integrate(&|wi| pdf.pdf(wo, wi), &th, &ph));
@@ -713,7 +733,10 @@ fn factor_bsdf_trait_matches_the_inherent_sampler() {
             let inherent = b.sample(wo, uc, u);
             let via = Bsdf::sample(&b, wo, uc, u);
             assert_eq!(via, Some(inherent).filter(|s| !s.is_lost()));
-            assert_eq!(Bsdf::eval(&b, wo, inherent.wi), b.model().eval(inherent.wi, wo));
+            assert_eq!(
+                Bsdf::eval(&b, wo, inherent.wi),
+                b.model().eval(inherent.wi, wo)
+            );
         }
     }
 }

@@ -145,11 +145,18 @@ impl NpfBxdf {
     /// for the lobes, all lobes in one pass through [`Model::lobe_terms`].
     fn albedo_estimates(&self, theta_o: f64) -> Vec<f64> {
         let lobes = self.model.lobes.len();
-        let a = super::half_vector_quadrature(theta_o, ALBEDO_GRID, 2 * ALBEDO_GRID, lobes, |wo, wi, w, acc| {
-            self.model.lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
-                acc[m] += luminance(t).max(0.0) * w;
-            });
-        });
+        let a = super::half_vector_quadrature(
+            theta_o,
+            ALBEDO_GRID,
+            2 * ALBEDO_GRID,
+            lobes,
+            |wo, wi, w, acc| {
+                self.model
+                    .lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
+                        acc[m] += luminance(t).max(0.0) * w;
+                    });
+            },
+        );
         std::iter::once(luminance(self.model.diffuse.map(f64::from)) * PI)
             .chain(a)
             .collect()

@@ -68,8 +68,7 @@ impl Bsdf for GgxParams {
             let wo_h = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
             if wo_h > 0.0 {
                 // Reflection Jacobian: dOmega_h / dOmega_i = 1 / (4 wo.h).
-                pdf += (1.0 - p_diffuse) * ggx_visible_normal_pdf(self.alpha, wo, h)
-                    / (4.0 * wo_h);
+                pdf += (1.0 - p_diffuse) * ggx_visible_normal_pdf(self.alpha, wo, h) / (4.0 * wo_h);
             }
         }
         pdf

@@ -32,6 +32,7 @@ impl Bsdf for MerlTable {
     }
 
     fn eval_angles(&self, a: &Angles) -> [f64; 3] {
-        self.lookup(a.theta_h, a.theta_d, a.phi_d).unwrap_or([0.0; 3])
+        self.lookup(a.theta_h, a.theta_d, a.phi_d)
+            .unwrap_or([0.0; 3])
     }
 }

@@ -459,7 +459,9 @@ pub fn run(args: ReportArgs) -> CliResult {
                 image: md.image.clone(),
                 render: render_opts,
             };
-            let (eval, image) = reference.evaluate_model(config.max_theta, &fit.model).map_err(|e| e.to_string())?;
+            let (eval, image) = reference
+                .evaluate_model(config.max_theta, &fit.model)
+                .map_err(|e| e.to_string())?;
             let dir = out.join(name);
             write_png(
                 &dir.join(format!("{}.png", c.name)),
@@ -759,17 +761,19 @@ fn convergence_run(
                 sweeps: part.history.len(),
                 seconds: part.seconds,
                 objective: part.objective,
-                render_psnr_db: crate::render::psnr(&reference.image, &img).map_err(|e| e.to_string())?,
+                render_psnr_db: crate::render::psnr(&reference.image, &img)
+                    .map_err(|e| e.to_string())?,
             });
             k *= 2;
         }
         let bsdf = crate::bsdf::NpfBxdf::new(full.model.clone()).map_err(|e| e.to_string())?;
-            let img = crate::render::render(render_opts, &bsdf);
+        let img = crate::render::render(render_opts, &bsdf);
         conv.checkpoints.push(Checkpoint {
             sweeps: n,
             seconds: full.seconds,
             objective: full.objective,
-            render_psnr_db: crate::render::psnr(&reference.image, &img).map_err(|e| e.to_string())?,
+            render_psnr_db: crate::render::psnr(&reference.image, &img)
+                .map_err(|e| e.to_string())?,
         });
         Ok(conv)
     });

@@ -6,7 +6,6 @@
 mod dist;
 
 pub use crate::bsdf::{
-    BsdfSample, BxdfSample, Component, NpfBxdf, GL4_W, GL4_X, SELECTION_FLOOR, SUBCELLS,
-    VIEW_NODES,
+    BsdfSample, BxdfSample, Component, NpfBxdf, GL4_W, GL4_X, SELECTION_FLOOR, SUBCELLS, VIEW_NODES,
 };
 pub use dist::PiecewiseConstant;
