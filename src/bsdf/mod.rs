@@ -19,6 +19,9 @@
 //! renderer ([`crate::render`]), the comparison ([`crate::evaluation`]) and
 //! the directional [`albedo`] take any of them.
 
+// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 mod factor;
 mod ggx;
 mod measured;
@@ -74,7 +77,7 @@ impl BsdfSample {
     /// A draw with its value and weight, or a lost one when the pdf or the
     /// direction is not usable.
     pub(crate) fn new(wi: Vec3, f: [f64; 3], pdf: f64, component: Component) -> Self {
-        if !(pdf > 0.0 && pdf.is_finite()) || !(wi[2] > 0.0) {
+        if !(pdf > 0.0 && pdf.is_finite() && wi[2] > 0.0) {
             return BsdfSample::lost(wi, component);
         }
         BsdfSample {
