@@ -332,31 +332,16 @@ pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxF
     let best = (0..=n)
         .min_by(|&a, &b| vals[a].total_cmp(&vals[b]))
         .unwrap_or(0);
-    let (mut a, mut b) = (grid[best.saturating_sub(1)], grid[(best + 1).min(n)]);
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    let mut x1 = b - r * (b - a);
-    let mut x2 = a + r * (b - a);
-    let (mut f1, mut f2) = (eval(x1), eval(x2));
-    for _ in 0..40 {
-        if (b - a).abs() < 1e-5 {
-            break;
-        }
-        if f1 <= f2 {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - r * (b - a);
-            f1 = eval(x1);
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + r * (b - a);
-            f2 = eval(x2);
-        }
-    }
-    let mut la = if f1 <= f2 { x1 } else { x2 };
-    if vals[best] < f1.min(f2) {
+    let br = crate::golden::golden_section(
+        &mut eval,
+        grid[best.saturating_sub(1)],
+        grid[(best + 1).min(n)],
+        40,
+        1e-5,
+        true,
+    );
+    let (mut la, f_best) = br.best();
+    if vals[best] < f_best {
         la = grid[best];
     }
     drop(eval);

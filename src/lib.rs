@@ -11,6 +11,7 @@ pub mod charts;
 pub mod cli;
 pub mod energy;
 pub mod evaluation;
+pub mod golden;
 pub mod interp;
 pub mod metrics;
 pub mod microfacet;
