@@ -68,7 +68,12 @@ fn main() {
                 let scores = Scores {
                     metrics: compare_model(&samples, 85.0, &res.model),
                     render_psnr_db: match &reference {
-                        Some(r) => Some(r.evaluate_model(85.0, &res.model)?.0.render_psnr_db),
+                        Some(r) => Some(
+                            r.evaluate_model(85.0, &res.model)
+                                .map_err(|e| e.to_string())?
+                                .0
+                                .render_psnr_db,
+                        ),
                         None => None,
                     },
                 };

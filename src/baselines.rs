@@ -23,12 +23,12 @@
 //!
 //! Both are fitted through [`crate::fit::fit`] (`ModelKind` picks the model).
 
-use crate::model::{Layout, Lobe, Model};
+use crate::microfacet::{ggx_d_cos2, ggx_g1_tan2};
+use crate::model::{Lobe, Model};
+use crate::nnls::nnls_enumerate;
 use crate::samples::SampleOptions;
-use crate::solver::init::{ggx_d, ggx_g1};
 use npf_data_loaders::{MeasuredSamples, MerlTable};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::time::Instant;
 
@@ -58,65 +58,18 @@ pub fn independent_g_model(per_channel: &[Model; 3]) -> Model {
     }
 }
 
-/// The analytic GGX + Lambert parameters.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct GgxParams {
-    pub kd: [f64; 3],
-    pub ks: [f64; 3],
-    pub f0: [f64; 3],
-    pub alpha: f64,
-}
-
-impl GgxParams {
-    /// BRDF value (1/sr) per channel; zero below the horizon.
-    pub fn eval_angles(&self, a: &npf_data_loaders::geometry::Angles) -> [f64; 3] {
-        let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
-        if ci <= 0.0 || co <= 0.0 {
-            return [0.0; 3];
-        }
-        let spec = ggx_d(a.theta_h, self.alpha)
-            * ggx_g1(a.theta_i, self.alpha)
-            * ggx_g1(a.theta_o, self.alpha)
-            / (4.0 * ci * co);
-        let s5 = (1.0 - a.theta_d.cos()).powi(5);
-        std::array::from_fn(|c| {
-            self.kd[c] / PI + self.ks[c] * (self.f0[c] + (1.0 - self.f0[c]) * s5) * spec
-        })
-    }
-
-    /// The same BRDF as a one-lobe factor model: d = kd / pi, s = ks / 4,
-    /// D = GGX D, G = Smith G1, F_C = Schlick, tabulated on `layout`.
-    pub fn to_model(&self, layout: Layout) -> Model {
-        let table = |grid: crate::grid::Grid, f: &dyn Fn(f64) -> f64| -> Vec<f32> {
-            crate::solver::init::theta_table(grid, f)
-                .into_iter()
-                .map(|v| v as f32)
-                .collect()
-        };
-        let alpha = self.alpha;
-        Model {
-            layout,
-            diffuse: self.kd.map(|k| (k / PI) as f32),
-            fresnel: self
-                .f0
-                .map(|f0| table(layout.f, &|t| f0 + (1.0 - f0) * (1.0 - t.cos()).powi(5))),
-            lobes: vec![Lobe {
-                s: self.ks.map(|k| (k / 4.0) as f32),
-                d: table(layout.d, &|t| ggx_d(t, alpha)),
-                g: table(layout.g, &|t| ggx_g1(t, alpha)),
-            }],
-        }
-    }
-}
+pub use crate::microfacet::GgxParams;
 
 /// A finished GGX + Lambert fit.
 #[derive(Clone, Debug)]
 pub struct GgxFit {
+    /// The fitted parameters.
     pub params: GgxParams,
     /// Weighted least-squares objective (same weights as the factor fits).
     pub objective: f64,
     /// Objective evaluations (alpha trials).
     pub trials: usize,
+    /// Wall-clock time of the fit.
     pub seconds: f64,
 }
 
@@ -132,53 +85,17 @@ struct GgxSample {
     w: [f64; 3],
 }
 
-/// Best non-negative x for min x'Ax - 2 b'x + c over 3 unknowns, by trying
-/// every active set; returns (x, objective).
-fn nnls3(a: &[[f64; 3]; 3], b: &[f64; 3], c: f64) -> ([f64; 3], f64) {
-    let mut best = ([0.0; 3], c);
-    for mask in 1u32..8 {
-        let idx: Vec<usize> = (0..3).filter(|k| mask & (1 << k) != 0).collect();
-        let n = idx.len();
-        let m = nalgebra::DMatrix::from_fn(n, n, |r, s| a[idx[r]][idx[s]]);
-        let v = nalgebra::DVector::from_fn(n, |r, _| b[idx[r]]);
-        let Some(sol) = m.clone().cholesky().map(|ch| ch.solve(&v)) else {
-            continue;
-        };
-        if sol.iter().any(|&x| !(x >= 0.0) || !x.is_finite()) {
-            continue;
-        }
-        let mut x = [0.0; 3];
-        for (r, &k) in idx.iter().enumerate() {
-            x[k] = sol[r];
-        }
-        let mut obj = c;
-        for i in 0..3 {
-            obj -= 2.0 * b[i] * x[i];
-            for j in 0..3 {
-                obj += x[i] * a[i][j] * x[j];
-            }
-        }
-        if obj < best.1 {
-            best = (x, obj);
-        }
-    }
-    best
-}
-
 fn ggx_solve(samples: &[GgxSample], alpha: f64) -> (GgxParams, f64) {
     // Per channel: A (3x3), b (3), c.
     type Acc = [[f64; 13]; 3];
-    let a2 = alpha * alpha;
     let acc: Acc = samples
         .par_chunks(8192)
         .map(|chunk| {
             let mut acc = [[0.0; 13]; 3];
             for s in chunk {
-                // The GGX D and Smith G1 of `solver::init`, from cached cosines.
-                let t2h = (1.0 - s.c2h) / s.c2h.max(1e-300);
-                let d = 1.0 / (PI * a2 * s.c2h * s.c2h * (1.0 + t2h / a2).powi(2));
-                let g1 = |t2: f64| 2.0 / (1.0 + (1.0 + a2 * t2).sqrt());
-                let spec = d * g1(s.t2i) * g1(s.t2o) * s.inv4cc;
+                // The one GGX D and Smith G1, from cached cosines.
+                let d = ggx_d_cos2(s.c2h, alpha);
+                let spec = d * ggx_g1_tan2(s.t2i, alpha) * ggx_g1_tan2(s.t2o, alpha) * s.inv4cc;
                 let phi = [1.0 / PI, spec, spec * s.s5];
                 for c in 0..3 {
                     let w = s.w[c];
@@ -213,8 +130,18 @@ fn ggx_solve(samples: &[GgxSample], alpha: f64) -> (GgxParams, f64) {
     let mut total = 0.0;
     for c in 0..3 {
         let a = &acc[c];
-        let m = [[a[0], a[1], a[2]], [a[3], a[4], a[5]], [a[6], a[7], a[8]]];
-        let (x, obj) = nnls3(&m, &[a[9], a[10], a[11]], a[12]);
+        let gram = nalgebra::DMatrix::from_fn(3, 3, |r, k| a[3 * r + k]);
+        let rhs = nalgebra::DVector::from_column_slice(&a[9..12]);
+        let x = nnls_enumerate(&gram, &rhs, &[0.0; 3]);
+        // y'Wy - 2 b'x + x'Ax, summed in this order (the value is a small
+        // difference of large sums, so the order shows in the last digits).
+        let mut obj = a[12];
+        for i in 0..3 {
+            obj -= 2.0 * a[9 + i] * x[i];
+            for j in 0..3 {
+                obj += x[i] * a[3 * i + j] * x[j];
+            }
+        }
         p.kd[c] = x[0];
         p.ks[c] = x[1] + x[2];
         p.f0[c] = if p.ks[c] > 0.0 { x[1] / p.ks[c] } else { 1.0 };
@@ -223,19 +150,37 @@ fn ggx_solve(samples: &[GgxSample], alpha: f64) -> (GgxParams, f64) {
     (p, total)
 }
 
+/// Why a GGX + Lambert fit could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum GgxFitError {
+    /// A sample value is NaN, infinite or negative.
+    #[error("{source_name}: a sample has a non-finite or negative value")]
+    InvalidSample {
+        /// The sample set's source.
+        source_name: String,
+    },
+    /// No sample lies within the grazing cut-off.
+    #[error("{source_name}: no valid samples within the {max_theta_deg} degree cut-off")]
+    NoSamples {
+        /// The sample set's source.
+        source_name: String,
+        /// The cut-off (degrees).
+        max_theta_deg: f64,
+    },
+}
+
 /// Fit GGX + Lambert to the samples with the factor fit's weighting and
 /// cut-off. Errors only on an empty or invalid sample set.
-pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxFit, String> {
+pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxFit, GgxFitError> {
     let t0 = Instant::now();
     let cut = options.max_theta_deg.to_radians();
     let mut set = Vec::with_capacity(samples.samples.len());
     for s in &samples.samples {
         let a = &s.angles;
         if s.rgb.iter().any(|v| !v.is_finite() || *v < 0.0) {
-            return Err(format!(
-                "{}: a sample has a non-finite or negative value",
-                samples.source
-            ));
+            return Err(GgxFitError::InvalidSample {
+                source_name: samples.source.clone(),
+            });
         }
         let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
         if a.theta_i > cut || a.theta_o > cut || ci <= 0.0 || co <= 0.0 {
@@ -246,16 +191,16 @@ pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxF
             t2i: (1.0 - ci * ci) / (ci * ci),
             t2o: (1.0 - co * co) / (co * co),
             inv4cc: 1.0 / (4.0 * ci * co),
-            s5: (1.0 - a.theta_d.cos()).powi(5),
+            s5: crate::microfacet::schlick_weight(a.theta_d.cos()),
             y: s.rgb,
             w: s.rgb.map(|v| options.weight(v, ci)),
         });
     }
     if set.is_empty() {
-        return Err(format!(
-            "{}: no valid samples within the {} degree cut-off",
-            samples.source, options.max_theta_deg
-        ));
+        return Err(GgxFitError::NoSamples {
+            source_name: samples.source.clone(),
+            max_theta_deg: options.max_theta_deg,
+        });
     }
     let mut trials = 0;
     let mut eval = |la: f64| {
@@ -273,31 +218,16 @@ pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxF
     let best = (0..=n)
         .min_by(|&a, &b| vals[a].total_cmp(&vals[b]))
         .unwrap_or(0);
-    let (mut a, mut b) = (grid[best.saturating_sub(1)], grid[(best + 1).min(n)]);
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    let mut x1 = b - r * (b - a);
-    let mut x2 = a + r * (b - a);
-    let (mut f1, mut f2) = (eval(x1), eval(x2));
-    for _ in 0..40 {
-        if (b - a).abs() < 1e-5 {
-            break;
-        }
-        if f1 <= f2 {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - r * (b - a);
-            f1 = eval(x1);
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + r * (b - a);
-            f2 = eval(x2);
-        }
-    }
-    let mut la = if f1 <= f2 { x1 } else { x2 };
-    if vals[best] < f1.min(f2) {
+    let br = crate::golden::golden_section(
+        &mut eval,
+        grid[best.saturating_sub(1)],
+        grid[(best + 1).min(n)],
+        40,
+        1e-5,
+        true,
+    );
+    let (mut la, f_best) = br.best();
+    if vals[best] < f_best {
         la = grid[best];
     }
     drop(eval);
@@ -312,8 +242,5 @@ pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxF
 
 /// A MERL table of an analytic GGX + Lambert BRDF (for tests and demos).
 pub fn ggx_table(p: &GgxParams) -> MerlTable {
-    MerlTable::from_fn(|th, td, pd| {
-        let a = npf_data_loaders::geometry::Angles::from_half_diff(th, 0.0, td, pd);
-        (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| p.eval_angles(&a))
-    })
+    crate::bsdf::to_merl(p)
 }

@@ -13,131 +13,67 @@
 //!   |a_model - a_ref| / a_ref averaged over channels;
 //! - rendering PSNR of a sphere (see [`crate::render`]).
 
-use crate::metrics::{compare, Metrics};
-use crate::render::{psnr, render, Image, RenderOptions};
-use npf_data_loaders::geometry::{half_diff_from_directions, spherical, Angles, Vec3};
+use crate::bsdf::{Bsdf, BsdfError, NpfBxdf};
+use crate::metrics::Metrics;
+use crate::render::{psnr, render, Image, RenderError, RenderOptions};
 use npf_data_loaders::{MeasuredSamples, MerlTable};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+
+pub use crate::bsdf::albedo;
 
 /// The view angles (degrees) albedo is compared at.
 pub const ALBEDO_VIEWS_DEG: [f64; 4] = [0.0, 30.0, 60.0, 75.0];
 
-/// The table as a BRDF of local directions: MERL's truncating lookup, 0 for
-/// missing cells and below the horizon.
-pub fn table_brdf(table: &MerlTable) -> impl Fn(Vec3, Vec3) -> [f64; 3] + Sync + '_ {
-    move |wi, wo| {
-        if wi[2] <= 0.0 || wo[2] <= 0.0 {
-            return [0.0; 3];
-        }
-        let (th, _ph, td, pd) = half_diff_from_directions(wi, wo);
-        table.lookup(th, td, pd).unwrap_or([0.0; 3])
-    }
+/// Why a comparison failed.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// The model could not be turned into a BSDF.
+    #[error(transparent)]
+    Bsdf(#[from] BsdfError),
+    /// The renders could not be compared.
+    #[error(transparent)]
+    Render(#[from] RenderError),
 }
 
-/// Numerical PSNR (dB) of a model over the samples within the cut-off.
+/// Numerical PSNR (dB) of a BSDF over the samples within the cut-off.
 pub fn numeric_psnr(
     samples: &MeasuredSamples,
     max_theta_deg: f64,
-    model: impl Fn(&Angles) -> [f64; 3] + Sync,
+    bsdf: &(dyn Bsdf + Sync),
 ) -> f64 {
-    let cut = max_theta_deg.to_radians();
-    let (sum, n, peak) = samples
-        .samples
-        .par_chunks(8192)
-        .map(|chunk| {
-            let (mut sum, mut n, mut peak) = (0.0f64, 0usize, 0.0f64);
-            for s in chunk {
-                let a = &s.angles;
-                if a.theta_i > cut || a.theta_o > cut {
-                    continue;
-                }
-                let ci = a.theta_i.cos();
-                let v = model(a);
-                for c in 0..3 {
-                    sum += ((v[c] - s.rgb[c]) * ci).powi(2);
-                    peak = peak.max(s.rgb[c] * ci);
-                }
-                n += 3;
-            }
-            (sum, n, peak)
-        })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold((0.0, 0, 0.0f64), |a, b| {
-            (a.0 + b.0, a.1 + b.1, a.2.max(b.2))
-        });
-    if n == 0 || sum == 0.0 {
-        return f64::INFINITY;
-    }
-    10.0 * (peak * peak / (sum / n as f64)).log10()
+    psnr_of(&crate::metrics::sums(samples, max_theta_deg, |a| {
+        bsdf.eval_angles(a)
+    }))
 }
 
-/// Directional albedo of a BRDF at view angle `theta_o` (radians):
-/// integral of f(wi, wo) cos theta_i over the incident hemisphere, by a
-/// fixed midpoint grid over the half vector h (wi = 2 (wo.h) h - wo,
-/// dOmega_i = 4 (wo.h) dOmega_h) with theta_h = (pi/2) u^2 (the MERL
-/// spacing, fine near the specular peak: the first node is 0.0014 degrees
-/// off it), 160 strata in u and 320 in phi_h.
-pub fn albedo(theta_o: f64, f: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync) -> [f64; 3] {
-    let (nu, nphi) = (160usize, 320usize);
-    let wo = spherical(theta_o, 0.0);
-    let dphi = 2.0 * std::f64::consts::PI / nphi as f64;
-    let du = 1.0 / nu as f64;
-    (0..nu)
-        .into_par_iter()
-        .map(|a| {
-            let u = (a as f64 + 0.5) * du;
-            let theta_h = std::f64::consts::FRAC_PI_2 * u * u;
-            // d theta_h = pi u du.
-            let w_theta = theta_h.sin() * std::f64::consts::PI * u * du * dphi;
-            let mut acc = [0.0; 3];
-            for b in 0..nphi {
-                let h = spherical(theta_h, (b as f64 + 0.5) * dphi);
-                let oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
-                if oh <= 0.0 {
-                    continue;
-                }
-                let wi = [
-                    2.0 * oh * h[0] - wo[0],
-                    2.0 * oh * h[1] - wo[1],
-                    2.0 * oh * h[2] - wo[2],
-                ];
-                if wi[2] <= 0.0 {
-                    continue;
-                }
-                let v = f(wi, wo);
-                let w = wi[2] * 4.0 * oh * w_theta;
-                for c in 0..3 {
-                    acc[c] += v[c] * w;
-                }
-            }
-            acc
-        })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+fn psnr_of(s: &crate::metrics::Sums) -> f64 {
+    let n = 3 * s.count;
+    if n == 0 || s.sq_err == 0.0 {
+        return f64::INFINITY;
+    }
+    10.0 * (s.peak * s.peak / (s.sq_err / n as f64)).log10()
 }
 
 /// Albedo of model and reference at one view angle.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AlbedoError {
+    /// The view angle (degrees).
     pub theta_o_deg: f64,
+    /// Albedo of the reference per channel.
     pub reference: [f64; 3],
+    /// Albedo of the model per channel.
     pub model: [f64; 3],
     /// |a_model - a_ref| / a_ref, averaged over channels (0 when both are 0).
     pub rel_error: f64,
 }
 
-pub fn albedo_errors(
-    reference: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync,
-    model: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync,
-) -> Vec<AlbedoError> {
+/// Albedo of both BSDFs at every [`ALBEDO_VIEWS_DEG`] angle.
+pub fn albedo_errors(reference: &(dyn Bsdf + Sync), model: &(dyn Bsdf + Sync)) -> Vec<AlbedoError> {
     ALBEDO_VIEWS_DEG
         .iter()
         .map(|&deg| {
-            let r = albedo(deg.to_radians(), &reference);
-            let m = albedo(deg.to_radians(), &model);
+            let r = albedo(deg.to_radians(), reference);
+            let m = albedo(deg.to_radians(), model);
             let rel = (0..3)
                 .map(|c| {
                     let d = (m[c] - r[c]).abs();
@@ -162,23 +98,32 @@ pub fn albedo_errors(
 /// All measures of one model against one table.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Evaluation {
+    /// The sample error measures.
     pub metrics: Metrics,
+    /// Numerical PSNR (dB).
     pub numeric_psnr_db: f64,
+    /// Albedo at each view angle.
     pub albedo: Vec<AlbedoError>,
     /// Largest albedo error over the view angles.
     pub max_albedo_error: f64,
+    /// Rendering PSNR (dB).
     pub render_psnr_db: f64,
 }
 
 /// What the reference side of a comparison needs, computed once per table.
 pub struct Reference<'a> {
+    /// The reference table.
     pub table: &'a MerlTable,
+    /// Its samples.
     pub samples: &'a MeasuredSamples,
+    /// Its render.
     pub image: Image,
+    /// The render settings (used for the test images too).
     pub render: RenderOptions,
 }
 
 impl<'a> Reference<'a> {
+    /// Renders the reference once.
     pub fn new(
         table: &'a MerlTable,
         samples: &'a MeasuredSamples,
@@ -187,23 +132,23 @@ impl<'a> Reference<'a> {
         Reference {
             table,
             samples,
-            image: render(render_opts, table_brdf(table)),
+            image: render(render_opts, table),
             render: render_opts,
         }
     }
 
-    /// Evaluate a BRDF given both ways (angles for the sample metrics,
+    /// Evaluate any BSDF (its angle form for the sample metrics, its
     /// directions for albedo and rendering); returns the test image too.
     pub fn evaluate(
         &self,
         max_theta_deg: f64,
-        at_angles: impl Fn(&Angles) -> [f64; 3] + Sync,
-        at_dirs: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync,
-    ) -> Result<(Evaluation, Image), String> {
-        let metrics = compare(self.samples, max_theta_deg, &at_angles);
-        let numeric_psnr_db = numeric_psnr(self.samples, max_theta_deg, &at_angles);
-        let albedo = albedo_errors(table_brdf(self.table), &at_dirs);
-        let image = render(self.render, &at_dirs);
+        bsdf: &(dyn Bsdf + Sync),
+    ) -> Result<(Evaluation, Image), EvalError> {
+        let sums = crate::metrics::sums(self.samples, max_theta_deg, |a| bsdf.eval_angles(a));
+        let metrics = sums.metrics(max_theta_deg);
+        let numeric_psnr_db = psnr_of(&sums);
+        let albedo = albedo_errors(self.table, bsdf);
+        let image = render(self.render, bsdf);
         let render_psnr_db = psnr(&self.image, &image)?;
         Ok((
             Evaluation {
@@ -217,31 +162,21 @@ impl<'a> Reference<'a> {
         ))
     }
 
+    /// [`Reference::evaluate`] for a factor model (through its [`NpfBxdf`]).
     pub fn evaluate_model(
         &self,
         max_theta_deg: f64,
         model: &crate::model::Model,
-    ) -> Result<(Evaluation, Image), String> {
-        self.evaluate(
-            max_theta_deg,
-            |a| model.eval_angles(a),
-            |wi, wo| model.eval(wi, wo),
-        )
+    ) -> Result<(Evaluation, Image), EvalError> {
+        self.evaluate(max_theta_deg, &NpfBxdf::new(model.clone())?)
     }
 
+    /// [`Reference::evaluate`] for a second MERL table.
     pub fn evaluate_table(
         &self,
         max_theta_deg: f64,
         other: &MerlTable,
-    ) -> Result<(Evaluation, Image), String> {
-        self.evaluate(
-            max_theta_deg,
-            |a| {
-                other
-                    .lookup(a.theta_h, a.theta_d, a.phi_d)
-                    .unwrap_or([0.0; 3])
-            },
-            table_brdf(other),
-        )
+    ) -> Result<(Evaluation, Image), EvalError> {
+        self.evaluate(max_theta_deg, other)
     }
 }

@@ -142,8 +142,8 @@ pub enum FitError {
     #[error(transparent)]
     Solver(#[from] SolverError),
     /// The GGX baseline fit failed.
-    #[error("{0}")]
-    Baseline(String),
+    #[error(transparent)]
+    Ggx(#[from] crate::baselines::GgxFitError),
 }
 
 impl FitConfig {
@@ -258,7 +258,7 @@ fn run_kind(
             })
         }
         ModelKind::Ggx => {
-            let fit = fit_ggx(samples, so).map_err(FitError::Baseline)?;
+            let fit = fit_ggx(samples, so)?;
             let model = fit.params.to_model(layout);
             Ok(Produced {
                 result: FitResult {

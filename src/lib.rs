@@ -12,16 +12,20 @@
 //! and PNG output.
 
 pub mod baselines;
+pub mod bsdf;
 #[cfg(feature = "cli")]
 pub mod cli;
 pub mod energy;
 pub mod error;
 pub mod evaluation;
 pub mod fit;
+pub mod golden;
 pub mod grid;
 pub mod metrics;
+pub mod microfacet;
 pub mod model;
 pub mod modelfile;
+pub mod nnls;
 pub mod reconstruct;
 pub mod render;
 pub mod samples;

@@ -8,20 +8,28 @@
 //!   measure Neural-BRDF trains on, which does not let the peak dominate.
 
 use crate::model::Model;
+use npf_data_loaders::geometry::Angles;
 use npf_data_loaders::MeasuredSamples;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+/// The error measures of one model against one sample set.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
+    /// Samples within the cut-off.
     pub samples: usize,
+    /// The grazing cut-off (degrees) on theta_i and theta_o.
     pub max_theta_deg: f64,
+    /// Cosine-weighted RMSE (1/sr).
     pub cos_rmse: f64,
+    /// Cosine-weighted RMSE relative to the reference's cosine-weighted norm.
     pub rel_cos_rmse: f64,
+    /// RMSE of log(1 + rho cos theta_i).
     pub log_rmse: f64,
 }
 
 impl Metrics {
+    /// True when every measure is finite.
     pub fn is_finite(&self) -> bool {
         [self.cos_rmse, self.rel_cos_rmse, self.log_rmse]
             .iter()
@@ -29,17 +37,35 @@ impl Metrics {
     }
 }
 
-pub fn compare(
+/// The sums behind [`Metrics`] and the numerical PSNR, in one pass over the
+/// samples within the cut-off.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Sums {
+    /// sum ((rho_model - rho) cos)^2 over samples and channels.
+    pub sq_err: f64,
+    /// sum (rho cos)^2.
+    pub sq_ref: f64,
+    /// sum (ln(1 + rho_model cos) - ln(1 + rho cos))^2.
+    pub sq_log: f64,
+    /// Samples counted.
+    pub count: usize,
+    /// Largest reference value rho cos.
+    pub peak: f64,
+}
+
+/// One deterministic pass (fixed chunks, summed in order) over the samples
+/// within the cut-off.
+pub(crate) fn sums(
     samples: &MeasuredSamples,
     max_theta_deg: f64,
-    model: impl Fn(&npf_data_loaders::geometry::Angles) -> [f64; 3] + Sync,
-) -> Metrics {
+    model: impl Fn(&Angles) -> [f64; 3] + Sync,
+) -> Sums {
     let cut = max_theta_deg.to_radians();
-    let sums = samples
+    samples
         .samples
         .par_chunks(8192)
         .map(|chunk| {
-            let mut acc = [0.0f64; 4];
+            let mut acc = Sums::default();
             for s in chunk {
                 let a = &s.angles;
                 if a.theta_i > cut || a.theta_o > cut {
@@ -49,34 +75,57 @@ pub fn compare(
                 let v = model(a);
                 for c in 0..3 {
                     let e = (v[c] - s.rgb[c]) * ci;
-                    acc[0] += e * e;
-                    acc[1] += (s.rgb[c] * ci).powi(2);
-                    acc[2] += ((v[c] * ci).ln_1p() - (s.rgb[c] * ci).ln_1p()).powi(2);
+                    acc.sq_err += e * e;
+                    acc.sq_ref += (s.rgb[c] * ci).powi(2);
+                    acc.sq_log += ((v[c] * ci).ln_1p() - (s.rgb[c] * ci).ln_1p()).powi(2);
+                    acc.peak = acc.peak.max(s.rgb[c] * ci);
                 }
-                acc[3] += 1.0;
+                acc.count += 1;
             }
             acc
         })
         .collect::<Vec<_>>()
         .into_iter()
-        .fold([0.0; 4], |a, b| {
-            [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]
-        });
-    let n = sums[3] * 3.0;
-    Metrics {
-        samples: sums[3] as usize,
-        max_theta_deg,
-        cos_rmse: (sums[0] / n).sqrt(),
-        // Zero error against a black reference is zero relative error.
-        rel_cos_rmse: if sums[0] == 0.0 {
-            0.0
-        } else {
-            (sums[0] / sums[1]).sqrt()
-        },
-        log_rmse: (sums[2] / n).sqrt(),
+        .fold(Sums::default(), |a, b| Sums {
+            sq_err: a.sq_err + b.sq_err,
+            sq_ref: a.sq_ref + b.sq_ref,
+            sq_log: a.sq_log + b.sq_log,
+            count: a.count + b.count,
+            peak: a.peak.max(b.peak),
+        })
+}
+
+impl Sums {
+    /// The measures of these sums.
+    pub(crate) fn metrics(&self, max_theta_deg: f64) -> Metrics {
+        let n = self.count as f64 * 3.0;
+        Metrics {
+            samples: self.count,
+            max_theta_deg,
+            cos_rmse: (self.sq_err / n).sqrt(),
+            // Zero error against a black reference is zero relative error.
+            rel_cos_rmse: if self.sq_err == 0.0 {
+                0.0
+            } else {
+                (self.sq_err / self.sq_ref).sqrt()
+            },
+            log_rmse: (self.sq_log / n).sqrt(),
+        }
     }
 }
 
+/// The measures of a model given as a function of the sample angles (see
+/// the module notes); any [`crate::bsdf::Bsdf`] is one through
+/// `|a| bsdf.eval_angles(a)`.
+pub fn compare(
+    samples: &MeasuredSamples,
+    max_theta_deg: f64,
+    model: impl Fn(&Angles) -> [f64; 3] + Sync,
+) -> Metrics {
+    sums(samples, max_theta_deg, model).metrics(max_theta_deg)
+}
+
+/// The measures of a factor model ([`Model::eval_angles`]).
 pub fn compare_model(samples: &MeasuredSamples, max_theta_deg: f64, model: &Model) -> Metrics {
     compare(samples, max_theta_deg, |a| model.eval_angles(a))
 }

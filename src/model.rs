@@ -303,9 +303,30 @@ impl Model {
     /// BRDF value (1/sr) per channel for a configuration; zero when either
     /// direction is at or below the horizon, never negative.
     pub fn eval_angles(&self, a: &Angles) -> [f64; 3] {
+        let mut v = self.diffuse.map(f64::from);
+        if !self.lobe_terms(a, |_, t| {
+            for c in 0..3 {
+                v[c] += t[c];
+            }
+        }) {
+            return [0.0; 3];
+        }
+        // Catmull-Rom G can undershoot below 0 between non-negative control
+        // points; a BRDF is never negative. Wherever the fitted (unclamped)
+        // value is >= 0 this changes nothing, elsewhere it only moves the
+        // value towards any measurement.
+        v.map(|x| x.max(0.0))
+    }
+
+    /// The specular terms s_C^m F_C D^m G^m G^m / (cos theta_i cos theta_o)
+    /// of a configuration, unclamped, handed to `term(m, value)` lobe by
+    /// lobe: what [`Model::eval_angles`] sums (with d_C, then clamps), and
+    /// what a sampler weighs its lobes by. Returns false (calling nothing)
+    /// when either direction is at or below the horizon.
+    pub fn lobe_terms(&self, a: &Angles, mut term: impl FnMut(usize, [f64; 3])) -> bool {
         let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
         if ci <= 0.0 || co <= 0.0 {
-            return [0.0; 3];
+            return false;
         }
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
@@ -318,19 +339,12 @@ impl Model {
             fs.apply_f32(&self.fresnel[1]),
             fs.apply_f32(&self.fresnel[2]),
         ];
-        let mut v = self.diffuse.map(f64::from);
-        for lobe in &self.lobes {
+        for (m, lobe) in self.lobes.iter().enumerate() {
             let spec =
                 ds.apply_f32(&lobe.d) * gis.apply_f32(&lobe.g) * gos.apply_f32(&lobe.g) / (ci * co);
-            for c in 0..3 {
-                v[c] += lobe.s[c] as f64 * f[c] * spec;
-            }
+            term(m, std::array::from_fn(|c| lobe.s[c] as f64 * f[c] * spec));
         }
-        // Catmull-Rom G can undershoot below 0 between non-negative control
-        // points; a BRDF is never negative. Wherever the fitted (unclamped)
-        // value is >= 0 this changes nothing, elsewhere it only moves the
-        // value towards any measurement.
-        v.map(|x| x.max(0.0))
+        true
     }
 
     /// BRDF value for unit directions in the local shading frame (normal

@@ -15,8 +15,8 @@
 //!   (0.7, 0.2, 0.7) with E = (0.6, 0.7, 0.9), rim from (0.15, 0.4, -0.9)
 //!   with E = (2.0, 2.0, 2.0) (directions normalised).
 //!
-//! Radiance at a pixel: L_o = sum_lights f(wi, wo) E cos theta_i + sum_k
-//! f(w_k, wo) L(w_k) cos theta_k dOmega_k over a fixed midpoint grid on the
+//! Radiance at a pixel: L_o = sum_lights f(wo, wi) E cos theta_i + sum_k
+//! f(wo, w_k) L(w_k) cos theta_k dOmega_k over a fixed midpoint grid on the
 //! sphere of directions: `n_theta` strata uniform in w_y (equal area) times
 //! `2 n_theta` in azimuth, each of solid angle 4 pi / (2 n_theta^2). Only
 //! directions above the pixel's tangent plane count. The quadrature is the
@@ -27,6 +27,7 @@
 //! the sphere's pixels and the three channels of P, in dB (infinite for
 //! identical images).
 
+use crate::bsdf::Bsdf;
 use npf_data_loaders::geometry::{dot, normalize, Vec3};
 use rayon::prelude::*;
 
@@ -51,9 +52,23 @@ impl Default for RenderOptions {
 /// A linear-radiance RGB image; `mask` marks the sphere's pixels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width and height in pixels.
     pub res: usize,
+    /// Linear radiance per pixel, row-major.
     pub rgb: Vec<[f64; 3]>,
+    /// True for the sphere's pixels (the others are background).
     pub mask: Vec<bool>,
+}
+
+/// Why images could not be compared or encoded.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// The two images have different resolutions.
+    #[error("images of {0} and {1} pixels square cannot be compared")]
+    SizeMismatch(usize, usize),
+    /// The reference image has no sphere pixel.
+    #[error("no sphere pixels")]
+    Empty,
 }
 
 const SKY: [f64; 3] = [0.40, 0.50, 0.70];
@@ -101,9 +116,9 @@ fn cross(a: Vec3, b: Vec3) -> Vec3 {
     ]
 }
 
-/// Render the sphere with a BRDF `f(wi, wo)` given in the local shading
-/// frame (normal +z), values in 1/sr.
-pub fn render(opts: RenderOptions, f: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync) -> Image {
+/// Render the sphere with any BSDF (evaluated in the local shading frame,
+/// normal +z, as `bsdf.eval(wo, wi)`).
+pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
     let res = opts.res.max(1);
     let quad = quadrature(opts.n_theta);
     let lights = lights();
@@ -135,7 +150,7 @@ pub fn render(opts: RenderOptions, f: impl Fn(Vec3, Vec3) -> [f64; 3] + Sync) ->
                 if wi[2] <= 0.0 || wo[2] <= 0.0 {
                     return;
                 }
-                let v = f(wi, wo);
+                let v = bsdf.eval(wo, wi);
                 for c in 0..3 {
                     l[c] += v[c] * e[c] * wi[2];
                 }
@@ -188,12 +203,9 @@ impl Image {
 /// Rendering PSNR in dB of `test` against `reference` (see the module
 /// notes); `f64::INFINITY` for identical display values. Errors on images of
 /// different sizes.
-pub fn psnr(reference: &Image, test: &Image) -> Result<f64, String> {
+pub fn psnr(reference: &Image, test: &Image) -> Result<f64, RenderError> {
     if reference.res != test.res {
-        return Err(format!(
-            "images of {} and {} pixels square cannot be compared",
-            reference.res, test.res
-        ));
+        return Err(RenderError::SizeMismatch(reference.res, test.res));
     }
     let (a, b) = (reference.display(), test.display());
     let mut sum = 0.0;
@@ -208,7 +220,7 @@ pub fn psnr(reference: &Image, test: &Image) -> Result<f64, String> {
         n += 3;
     }
     if n == 0 {
-        return Err("no sphere pixels".into());
+        return Err(RenderError::Empty);
     }
     let mse = sum / n as f64;
     Ok(if mse == 0.0 {

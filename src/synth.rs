@@ -2,8 +2,8 @@
 //! tests, the demo and the benchmarks' sanity checks fit, so nothing needs
 //! measured data.
 
+use crate::microfacet::{ggx_d, ggx_g1, schlick, tabulate, GgxParams};
 use crate::model::{Layout, Lobe, Model};
-use crate::solver::init::{ggx_d, ggx_g1};
 use npf_data_loaders::geometry::Angles;
 use npf_data_loaders::MerlTable;
 
@@ -11,28 +11,34 @@ use npf_data_loaders::MerlTable;
 /// with Schlick's Fresnel (f0 per channel) and uncorrelated Smith G1.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GgxLambert {
+    /// Diffuse albedo per channel.
     pub kd: [f64; 3],
+    /// Fresnel reflectance at normal incidence per channel.
     pub f0: [f64; 3],
+    /// GGX roughness.
     pub alpha: f64,
 }
 
 impl GgxLambert {
-    pub fn eval_angles(&self, a: &Angles) -> Option<[f64; 3]> {
-        let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
-        if ci <= 0.0 || co <= 0.0 {
-            return None;
+    /// The same BRDF as GGX + Lambert parameters (ks = 1).
+    pub fn params(&self) -> GgxParams {
+        GgxParams {
+            kd: self.kd,
+            ks: [1.0; 3],
+            f0: self.f0,
+            alpha: self.alpha,
         }
-        let d = ggx_d(a.theta_h, self.alpha);
-        let g = ggx_g1(a.theta_i, self.alpha) * ggx_g1(a.theta_o, self.alpha);
-        let schlick = (1.0 - a.theta_d.cos()).powi(5);
-        Some(std::array::from_fn(|c| {
-            let f = self.f0[c] + (1.0 - self.f0[c]) * schlick;
-            self.kd[c] / std::f64::consts::PI + d * f * g / (4.0 * ci * co)
-        }))
     }
 
+    /// BRDF value (1/sr) per channel; `None` below the horizon (a missing
+    /// MERL cell).
+    pub fn eval_angles(&self, a: &Angles) -> Option<[f64; 3]> {
+        (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| self.params().eval_angles(a))
+    }
+
+    /// The BRDF tabulated as a MERL table.
     pub fn table(&self) -> MerlTable {
-        MerlTable::from_fn(|th, td, pd| self.eval_angles(&Angles::from_half_diff(th, 0.0, td, pd)))
+        crate::bsdf::to_merl(&self.params())
     }
 }
 
@@ -42,21 +48,15 @@ impl GgxLambert {
 /// solver, comparing values (the factors themselves are only defined up to
 /// the gauge).
 pub fn known_factor_model(layout: Layout, alphas: &[f64]) -> Model {
-    let table = |grid: crate::grid::Grid, f: &dyn Fn(f64) -> f64| {
-        crate::solver::init::theta_table(grid, f)
-            .into_iter()
-            .map(|v| v as f32)
-            .collect::<Vec<f32>>()
-    };
     let f0 = [0.9, 0.6, 0.3];
-    let fresnel = f0.map(|f0: f64| table(layout.f, &|t| f0 + (1.0 - f0) * (1.0 - t.cos()).powi(5)));
+    let fresnel = f0.map(|f0: f64| tabulate(layout.f, &|t| schlick(f0, t.cos())));
     let lobes = alphas
         .iter()
         .enumerate()
         .map(|(m, &a)| Lobe {
             s: [[0.8, 0.5, 0.3], [0.2, 0.3, 0.5], [0.1, 0.1, 0.1]][m % 3],
-            d: table(layout.d, &|t| ggx_d(t, a)),
-            g: table(layout.g, &|t| ggx_g1(t, a * 1.5)),
+            d: tabulate(layout.d, &|t| ggx_d(t, a)),
+            g: tabulate(layout.g, &|t| ggx_g1(t, a * 1.5)),
         })
         .collect();
     Model {

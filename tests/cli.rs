@@ -249,7 +249,7 @@ fn fit_exports_both_forms_which_reload_exactly_and_reconstruct_and_evaluate() {
     let r = 30f64.to_radians();
     let wi = [r.sin(), 0.0, r.cos()];
     let wo = [-r.sin(), 0.0, r.cos()];
-    let v = file.model.eval(wi, wo);
+    let v = file.model.eval(wo, wi);
     assert!(nums.len() >= 3, "{line}");
     let tail = &nums[nums.len() - 3..];
     for c in 0..3 {

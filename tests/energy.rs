@@ -262,3 +262,29 @@ fn simulator_is_deterministic_for_a_seed() {
     let b = simulate(std::slice::from_ref(&config), 11, &|_| ());
     assert_eq!(a[0][0].mean, b[0][0].mean);
 }
+
+/// The energy toolkit's GGX (projected-area form, adaptive quadrature) and
+/// npf's one analytic GGX (crate::microfacet, through the BSDF interface and
+/// the comparison's fixed albedo grid) are the same BRDF: their albedos
+/// agree to the grid's accuracy.
+#[test]
+fn energy_ggx_albedo_matches_the_bsdf_albedo_of_the_one_ggx() {
+    use npf::microfacet::GgxParams;
+    for alpha in [0.1, 0.5] {
+        let ggx = GgxParams {
+            kd: [0.0; 3],
+            ks: [1.0; 3],
+            f0: [1.0; 3],
+            alpha,
+        };
+        for theta_o in [0.0f64, 45.0, 70.0] {
+            let t = theta_o.to_radians();
+            let grid = npf::bsdf::albedo(t, &ggx)[0];
+            let adaptive = specular_albedo(Ndf::Ggx, Masking::Uncorrelated, t.cos(), alpha, 1e-10);
+            assert!(
+                (grid - adaptive).abs() < 2e-3,
+                "alpha {alpha}, theta_o {theta_o}: {grid} vs {adaptive}"
+            );
+        }
+    }
+}

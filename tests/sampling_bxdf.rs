@@ -285,7 +285,7 @@ fn sample_returns_the_pdf_and_the_weight_of_what_it_draws() {
                 s.pdf
             );
             let f = b.eval(wo, s.wi);
-            let m = b.model().eval(s.wi, wo);
+            let m = b.model().eval(wo, s.wi);
             for c in 0..3 {
                 let expect = f[c] * s.wi[2] / pdf;
                 assert!(
@@ -484,10 +484,23 @@ fn chi2_p_value(b: &NpfBxdf, wo: Vec3, n: usize, seed: u64) -> f64 {
         let j = (((ph + PI) / (2.0 * PI) * PHI_CELLS as f64) as usize).min(PHI_CELLS - 1);
         observed[band * PHI_CELLS + j] += 1.0;
     }
-    let (mut chi2, mut dof) = (0.0, 0usize);
-    let (mut pool_e, mut pool_o) = (0.0, 0.0);
     for (e, o) in expected.iter().zip(&observed) {
         assert!(!(*e == 0.0 && *o > 0.0), "draws in a cell of zero pdf");
+    }
+    let total_e: f64 = expected.iter().sum();
+    assert!(
+        (total_e / n as f64 - 1.0).abs() < 1e-3,
+        "expected counts sum to {total_e} of {n}"
+    );
+    pooled_p_value(&expected, &observed)
+}
+
+/// The chi-square p-value of observed against expected counts, cells
+/// expecting fewer than 5 pooled into one.
+fn pooled_p_value(expected: &[f64], observed: &[f64]) -> f64 {
+    let (mut chi2, mut dof) = (0.0, 0usize);
+    let (mut pool_e, mut pool_o) = (0.0, 0.0);
+    for (e, o) in expected.iter().zip(observed) {
         if *e < 5.0 {
             pool_e += e;
             pool_o += o;
@@ -500,11 +513,6 @@ fn chi2_p_value(b: &NpfBxdf, wo: Vec3, n: usize, seed: u64) -> f64 {
         chi2 += (pool_o - pool_e).powi(2) / pool_e;
         dof += 1;
     }
-    let total_e: f64 = expected.iter().sum();
-    assert!(
-        (total_e / n as f64 - 1.0).abs() < 1e-3,
-        "expected counts sum to {total_e} of {n}"
-    );
     gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
 }
 
@@ -540,64 +548,8 @@ fn chi_square_detects_a_wrong_pdf() {
     assert!(p_good > 1e-3, "{p_good}");
     // A model that differs only a little: alpha 0.2 vs 0.22.
     let other = NpfBxdf::new(known_factor_model(Layout::default(), &[0.22])).unwrap();
-    let mixed = Mixed {
-        draw: &good,
-        pdf: &other,
-    };
-    let p_bad = mixed.p_value(wo);
+    let p_bad = grid_p_value(&good, &other, wo, 200_000, 9);
     assert!(p_bad < 1e-6, "a wrong pdf passed: p = {p_bad}");
-}
-
-struct Mixed<'a> {
-    draw: &'a NpfBxdf,
-    pdf: &'a NpfBxdf,
-}
-
-impl Mixed<'_> {
-    /// Chi-square of draws from one model against another's pdf, on a
-    /// fixed 16 x 32 grid.
-    fn p_value(&self, wo: Vec3) -> f64 {
-        let n = 200_000;
-        let (nt, np) = (16, 32);
-        let mut rng = Pcg64::seed_from_u64(9);
-        let mut obs = vec![0.0; nt * np + 1];
-        for _ in 0..n {
-            let s = self.draw.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
-            if s.is_lost() {
-                obs[nt * np] += 1.0;
-                continue;
-            }
-            let t = s.wi[2].clamp(0.0, 1.0).acos();
-            let p = s.wi[1].atan2(s.wi[0]).rem_euclid(2.0 * PI);
-            let i = ((t / (PI / 2.0) * nt as f64) as usize).min(nt - 1);
-            let j = ((p / (2.0 * PI) * np as f64) as usize).min(np - 1);
-            obs[i * np + j] += 1.0;
-        }
-        let mut chi2 = 0.0;
-        let mut dof = 0;
-        for i in 0..nt {
-            for j in 0..np {
-                let th = panel_edges(
-                    i as f64 * PI / 2.0 / nt as f64,
-                    (i + 1) as f64 * PI / 2.0 / nt as f64,
-                    4,
-                    &[],
-                );
-                let ph = panel_edges(
-                    j as f64 * 2.0 * PI / np as f64,
-                    (j + 1) as f64 * 2.0 * PI / np as f64,
-                    4,
-                    &[],
-                );
-                let e = n as f64 * integrate(&|wi| self.pdf.pdf(wo, wi), &th, &ph);
-                if e >= 5.0 {
-                    chi2 += (obs[i * np + j] - e).powi(2) / e;
-                    dof += 1;
-                }
-            }
-        }
-        gamma_q((dof - 1) as f64 / 2.0, chi2 / 2.0)
-    }
 }
 
 #[test]
@@ -606,4 +558,221 @@ fn chi_square_helper_is_calibrated() {
     assert!((gamma_q(0.5, 3.841_458_820_694_124 / 2.0) - 0.05).abs() < 1e-9);
     assert!((gamma_q(5.0, 23.209_251_158_954_36 / 2.0) - 0.01).abs() < 1e-9);
     assert!((gamma_q(50.0, 124.342_113_404_3 / 2.0) - 0.05).abs() < 1e-8);
+}
+
+// ---- The Bsdf interface: every implementation (factor model, GGX +
+// Lambert, measured table) draws what its pdf says and weighs by f cos / pdf.
+
+use npf::bsdf::{Bsdf, BsdfSample};
+use npf::microfacet::GgxParams;
+
+fn ggx(alpha: f64) -> GgxParams {
+    GgxParams {
+        kd: [0.05, 0.08, 0.12],
+        ks: [1.0, 0.9, 0.8],
+        f0: [0.95, 0.64, 0.54],
+        alpha,
+    }
+}
+
+fn implementations() -> Vec<(&'static str, Box<dyn Bsdf + Sync>)> {
+    let table = npf::synth::GgxLambert {
+        kd: [0.05, 0.08, 0.12],
+        f0: [0.95, 0.64, 0.54],
+        alpha: 0.2,
+    }
+    .table();
+    vec![
+        ("factor", Box::new(NpfBxdf::new(three_lobes()).unwrap())),
+        ("ggx-0.1", Box::new(ggx(0.1))),
+        ("ggx-0.4", Box::new(ggx(0.4))),
+        ("merl", Box::new(table)),
+    ]
+}
+
+/// Stratified random numbers, `k` x `k` for the direction, `uc` cycled.
+fn strata(k: usize) -> impl Iterator<Item = (f64, [f64; 2])> {
+    (0..k * k).map(move |i| {
+        let (a, b) = (i % k, i / k);
+        let uc = ((i * 7919) % 1000) as f64 / 1000.0;
+        (
+            uc,
+            [(a as f64 + 0.5) / k as f64, (b as f64 + 0.5) / k as f64],
+        )
+    })
+}
+
+#[test]
+fn every_bsdf_sample_agrees_with_its_pdf_and_eval() {
+    for (name, b) in implementations() {
+        for theta_o in [0.0, 45.0, 80.0] {
+            let wo = wo_at(theta_o);
+            let mut drawn = 0;
+            for (uc, u) in strata(64) {
+                let Some(s): Option<BsdfSample> = b.sample(wo, uc, u) else {
+                    continue;
+                };
+                drawn += 1;
+                assert!(s.wi[2] > 0.0 && s.pdf > 0.0, "{name}: {s:?}");
+                let n = (s.wi[0].powi(2) + s.wi[1].powi(2) + s.wi[2].powi(2)).sqrt();
+                assert!((n - 1.0).abs() < 1e-12, "{name}: |wi| = {n}");
+                let pdf = b.pdf(wo, s.wi);
+                assert!(
+                    (s.pdf - pdf).abs() <= 1e-12 * pdf,
+                    "{name}: {} vs {pdf}",
+                    s.pdf
+                );
+                assert_eq!(s.f, b.eval(wo, s.wi), "{name}");
+                for c in 0..3 {
+                    let w = s.f[c] * s.wi[2] / s.pdf;
+                    assert!((s.weight[c] - w).abs() <= 1e-12 * w.abs(), "{name}");
+                    assert!(s.f[c] >= 0.0, "{name}: negative value {s:?}");
+                }
+            }
+            assert!(
+                drawn > 64 * 64 / 2,
+                "{name} at {theta_o}: only {drawn} draws"
+            );
+            // Outside the hemisphere: nothing, and no panic on odd numbers.
+            assert!(b.sample([0.0, 0.6, -0.8], 0.5, [0.5, 0.5]).is_none());
+            assert_eq!(b.pdf(wo, [0.0, 0.6, -0.8]), 0.0);
+            let _ = b.sample(wo, f64::NAN, [2.0, -1.0]);
+        }
+    }
+}
+
+/// The pdf integrates to 1 minus the mass the sampler loses below the
+/// horizon (that mass counted from stratified draws).
+#[test]
+fn every_bsdf_pdf_integrates_to_one_minus_its_lost_mass() {
+    for (name, b) in implementations() {
+        for theta_o in [0.0, 45.0, 80.0] {
+            let wo = wo_at(theta_o);
+            let k = 400;
+            let lost = strata(k)
+                .filter(|&(uc, u)| b.sample(wo, uc, u).is_none())
+                .count() as f64
+                / (k * k) as f64;
+            // Refine around the mirror direction, where the GGX peak is.
+            let th = panel_edges(0.0, PI / 2.0, 96, &[theta_o.to_radians()]);
+            let ph = panel_edges(-PI, PI, 96, &[PI, -PI]);
+            let total = integrate(&|wi| b.pdf(wo, wi), &th, &ph);
+            eprintln!("{name:8} theta_o {theta_o:4}: integral {total:.6}, lost {lost:.6}");
+            assert!(
+                (total - (1.0 - lost)).abs() < 2e-3,
+                "{name} at {theta_o}: {total} + {lost}"
+            );
+        }
+    }
+}
+
+/// Chi-square of draws from `draw` against `pdf` on a 16 x 32 (theta_i,
+/// phi_i) grid, plus one cell for the lost draws; cells expecting fewer
+/// than 5 are pooled.
+fn grid_p_value(draw: &dyn Bsdf, pdf: &dyn Bsdf, wo: Vec3, n: usize, seed: u64) -> f64 {
+    let (nt, np) = (16, 32);
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let mut obs = vec![0.0; nt * np + 1];
+    for _ in 0..n {
+        let Some(s) = draw.sample(wo, rng.gen(), [rng.gen(), rng.gen()]) else {
+            obs[nt * np] += 1.0;
+            continue;
+        };
+        let t = s.wi[2].clamp(0.0, 1.0).acos();
+        let p = s.wi[1].atan2(s.wi[0]).rem_euclid(2.0 * PI);
+        let i = ((t / (PI / 2.0) * nt as f64) as usize).min(nt - 1);
+        let j = ((p / (2.0 * PI) * np as f64) as usize).min(np - 1);
+        obs[i * np + j] += 1.0;
+    }
+    let mut expected = Vec::with_capacity(nt * np + 1);
+    for i in 0..nt {
+        for j in 0..np {
+            let cell = |k: usize, m: usize, span: f64| {
+                panel_edges(
+                    k as f64 * span / m as f64,
+                    (k + 1) as f64 * span / m as f64,
+                    6,
+                    &[],
+                )
+            };
+            let (th, ph) = (cell(i, nt, PI / 2.0), cell(j, np, 2.0 * PI));
+            expected.push(n as f64 * integrate(&|wi| pdf.pdf(wo, wi), &th, &ph));
+        }
+    }
+    let inside: f64 = expected.iter().sum();
+    expected.push((n as f64 - inside).max(0.0));
+    pooled_p_value(&expected, &obs)
+}
+
+#[test]
+fn chi_square_ggx_sampler_matches_its_pdf() {
+    let cases: Vec<(f64, f64)> = [0.1, 0.4]
+        .iter()
+        .flat_map(|&a| [0.0, 45.0, 80.0].map(|t| (a, t)))
+        .collect();
+    let level = 1.0 - (1.0 - 0.01f64).powf(1.0 / cases.len() as f64);
+    for (k, &(alpha, theta_o)) in cases.iter().enumerate() {
+        let b = ggx(alpha);
+        let p = grid_p_value(&b, &b, wo_at(theta_o), 300_000, 40 + k as u64);
+        eprintln!("chi2 ggx alpha {alpha} theta_o {theta_o}: p = {p:.4}");
+        assert!(p > level, "GGX alpha {alpha} at {theta_o} deg: p = {p:.3e}");
+    }
+    // And the same test rejects a slightly wrong pdf (alpha 0.3 vs 0.33).
+    let p_bad = grid_p_value(&ggx(0.3), &ggx(0.33), wo_at(30.0), 300_000, 7);
+    assert!(p_bad < 1e-6, "a wrong pdf passed: p = {p_bad}");
+}
+
+/// The trait's view of the factor sampler is its inherent one, with the
+/// lost draws as `None`.
+#[test]
+fn factor_bsdf_trait_matches_the_inherent_sampler() {
+    let b = NpfBxdf::new(three_lobes()).unwrap();
+    for theta_o in [0.0, 60.0, 85.0] {
+        let wo = wo_at(theta_o);
+        for (uc, u) in strata(32) {
+            let inherent = b.sample(wo, uc, u);
+            let via = Bsdf::sample(&b, wo, uc, u);
+            assert_eq!(via, Some(inherent).filter(|s| !s.is_lost()));
+            assert_eq!(
+                Bsdf::eval(&b, wo, inherent.wi),
+                b.model().eval(wo, inherent.wi)
+            );
+        }
+    }
+}
+
+/// The clamp the sampler used to miss: where Catmull-Rom G undershoots
+/// below 0, a lobe's term is negative; the BSDF's value is `Model::eval`
+/// (clamped at 0), so no value and no weight is negative.
+#[test]
+fn factor_bsdf_values_are_clamped_where_catmull_rom_g_undershoots() {
+    let mut m = known_factor_model(Layout::default(), &[0.3]);
+    m.diffuse = [0.0; 3];
+    // Pairs of zero control points between ones: the spline dips below 0.
+    for (k, g) in m.lobes[0].g.iter_mut().enumerate() {
+        *g = if k % 3 == 0 { 1.0 } else { 0.0 };
+    }
+    let b = NpfBxdf::new(m.clone()).unwrap();
+    let mut negative = 0;
+    for i in 0..60 {
+        for o in 0..60 {
+            let wi = spherical(0.013 * i as f64 + 0.005, 0.4);
+            let wo = spherical(0.013 * o as f64 + 0.005, 2.9);
+            let a = npf::loaders::geometry::Angles::from_directions(wi, wo);
+            let mut unclamped = 0.0;
+            m.lobe_terms(&a, |_, t| unclamped += t[0]);
+            let v = Bsdf::eval(&b, wo, wi);
+            assert!(v.iter().all(|&x| x >= 0.0), "{v:?}");
+            if unclamped < 0.0 {
+                negative += 1;
+                assert_eq!(v[0], 0.0);
+            }
+        }
+    }
+    assert!(negative > 0, "the test model never undershoots");
+    for (uc, u) in strata(32) {
+        if let Some(s) = Bsdf::sample(&b, wo_at(40.0), uc, u) {
+            assert!(s.weight.iter().all(|&w| w >= 0.0), "{s:?}");
+        }
+    }
 }

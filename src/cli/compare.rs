@@ -137,14 +137,14 @@ pub fn run(args: CompareArgs) -> CliResult {
         let reference = Reference::new(&table, &samples, opts);
         let (e, i) = reference
             .evaluate_model(args.max_theta, &file.model)
-            .map_err(CliError::Message)?;
+            .map_err(|e| CliError::Message(e.to_string()))?;
         (e, i, reference)
     } else {
         let other = MerlTable::read(&args.test)?;
         let reference = Reference::new(&table, &samples, opts);
         let (e, i) = reference
             .evaluate_table(args.max_theta, &other)
-            .map_err(CliError::Message)?;
+            .map_err(|e| CliError::Message(e.to_string()))?;
         (e, i, reference)
     };
     if args.json {

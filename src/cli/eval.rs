@@ -35,7 +35,7 @@ pub fn run(args: EvalArgs) -> CliResult {
     for q in args.angles.chunks(4) {
         let wi = spherical(q[0].to_radians(), q[1].to_radians());
         let wo = spherical(q[2].to_radians(), q[3].to_radians());
-        let v = model.eval(wi, wo);
+        let v = model.eval(wo, wi);
         println!(
             "{},{},{},{},{:.9e},{:.9e},{:.9e}",
             q[0], q[1], q[2], q[3], v[0], v[1], v[2]

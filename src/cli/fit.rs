@@ -110,7 +110,7 @@ pub fn flag_message(e: &FitError) -> String {
             S::MaskedLobe(_) | S::Start(_) => e.to_string(),
         },
         FitError::Threads { .. } => format!("--threads: {e}"),
-        FitError::Samples(_) | FitError::Baseline(_) => e.to_string(),
+        FitError::Samples(_) | FitError::Ggx(_) => e.to_string(),
     }
 }
 
@@ -324,7 +324,7 @@ fn select(
         let render_psnr_db = match reference {
             Some(r) => Some(
                 r.evaluate_model(config.max_theta, &f.result.model)
-                    .map_err(CliError::Message)?
+                    .map_err(|e| CliError::Message(e.to_string()))?
                     .0
                     .render_psnr_db,
             ),

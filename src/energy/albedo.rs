@@ -21,6 +21,7 @@ pub enum Model {
 pub const DEFAULT_TOL: f64 = 1e-10;
 
 impl Model {
+    /// Default table resolution (per axis).
     pub fn default_res(self) -> usize {
         match self {
             Model::Ggx => 128,
@@ -28,6 +29,7 @@ impl Model {
         }
     }
 
+    /// Name in file names and reports.
     pub fn name(self) -> &'static str {
         match self {
             Model::Ggx => "ggx",
@@ -130,15 +132,20 @@ pub fn oren_nayar_albedo(mu_o: f64, alpha: f64) -> f64 {
 /// How α is turned into an interpolation weight between two table nodes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AlphaAxis {
+    /// Linear in alpha.
     Linear,
+    /// Linear in alpha^2.
     Squared,
 }
 
 /// E on the grid μj = j/(n−1), αk = k/(n−1), plus E_avg at each αk.
 #[derive(Clone, Debug)]
 pub struct AlbedoTable {
+    /// The model tabulated.
     pub model: Model,
+    /// Nodes in mu.
     pub n_mu: usize,
+    /// Nodes in alpha.
     pub n_alpha: usize,
     /// E, α-major: `e[k * n_mu + j]` is E(μj, αk).
     pub e: Vec<f64>,
@@ -147,6 +154,7 @@ pub struct AlbedoTable {
     /// E_avg(αk) of the bilinear table, 2π ∫ E_table μ dμ: the normaliser of
     /// f_ms, so that f_ms restores exactly what the table says is missing.
     pub e_avg_table: Vec<f64>,
+    /// How alpha is interpolated.
     pub alpha_axis: AlphaAxis,
 }
 
@@ -206,10 +214,12 @@ impl AlbedoTable {
         table
     }
 
+    /// Node j of the mu axis.
     pub fn mu(&self, j: usize) -> f64 {
         node(j, self.n_mu)
     }
 
+    /// Node k of the alpha axis.
     pub fn alpha(&self, k: usize) -> f64 {
         node(k, self.n_alpha)
     }

@@ -36,16 +36,21 @@ impl AlbedoTable {
 /// which must be π.
 #[derive(Clone, Copy, Debug)]
 pub struct FurnacePoint {
+    /// The roughness.
     pub alpha: f64,
+    /// Double integral of the single-scattering lobe.
     pub single: f64,
+    /// Double integral of f_ms.
     pub compensation: f64,
 }
 
 impl FurnacePoint {
+    /// single + compensation (pi when energy is conserved).
     pub fn sum(&self) -> f64 {
         self.single + self.compensation
     }
 
+    /// |sum - pi|.
     pub fn error(&self) -> f64 {
         (self.sum() - PI).abs()
     }

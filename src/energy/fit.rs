@@ -8,11 +8,14 @@ use std::f64::consts::PI;
 /// A polynomial π + Σ c_p α^p over the given powers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AvgFit {
+    /// Powers of alpha of the terms.
     pub powers: Vec<i32>,
+    /// Coefficients of the terms.
     pub coeffs: Vec<f64>,
 }
 
 impl AvgFit {
+    /// The polynomial π + Σ c_p α^p at alpha.
     pub fn eval(&self, alpha: f64) -> f64 {
         PI + self
             .powers

@@ -10,7 +10,9 @@ use std::f64::consts::PI;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Ndf {
+    /// GGX (Trowbridge-Reitz); its D is `crate::microfacet`'s.
     Ggx,
+    /// Beckmann.
     Beckmann,
 }
 
@@ -67,10 +69,8 @@ impl Ndf {
         let c2 = cos_m * cos_m;
         let a2 = alpha * alpha;
         match self {
-            Ndf::Ggx => {
-                let t = c2 * (a2 - 1.0) + 1.0;
-                a2 / (PI * t * t)
-            }
+            // The one analytic GGX (crate::microfacet).
+            Ndf::Ggx => crate::microfacet::ggx_d_cos2(c2, alpha),
             Ndf::Beckmann => {
                 let tan2 = (1.0 - c2) / c2;
                 (-tan2 / a2).exp() / (PI * a2 * c2 * c2)

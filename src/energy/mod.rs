@@ -5,13 +5,20 @@
 //! microsurface random-walk simulator to refit the seed's τ.
 //! Conventions and measured results: `docs/energy.md`.
 
+/// Directional albedo tables E(mu, alpha) and their averages.
 pub mod albedo;
+/// The multiple-scattering lobe and the white-furnace check.
 pub mod compensation;
+/// Polynomial fits of E_avg(alpha).
 pub mod fit;
+/// GGX and Beckmann distributions and Smith terms in projected-area form.
 pub mod microfacet;
 pub mod quad;
+/// The seed's reflectance series and constants.
 pub mod series;
+/// A microsurface random-walk simulator.
 pub mod simulate;
+/// Refitting the seed's tau from simulations.
 pub mod tau;
 
 pub use albedo::{AlbedoTable, Model};

@@ -67,8 +67,11 @@ pub fn diffuse_factor(rho: f64, tau: f64) -> f64 {
 /// One constant of the seed checked against its own definition.
 #[derive(Clone, Debug)]
 pub struct ConstantCheck {
+    /// The constant's name.
     pub name: &'static str,
+    /// The value the seed states.
     pub stated: f64,
+    /// The value recomputed from its definition.
     pub from_definition: f64,
 }
 

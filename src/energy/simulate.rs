@@ -33,22 +33,30 @@ pub enum Surface {
 /// One simulated configuration.
 #[derive(Clone, Debug)]
 pub struct SimConfig {
+    /// The microsurface simulated.
     pub surface: Surface,
+    /// Its normal distribution.
     pub ndf: Ndf,
+    /// Its roughness.
     pub alpha: f64,
     /// Incidence angle from the normal, radians.
     pub theta: f64,
     /// F0 (conductor) or ρ (diffuse) values, all scored by the same walks.
     pub reflectances: Vec<f64>,
+    /// Paths traced.
     pub paths: usize,
 }
 
 /// Mean energy per order bin and in total, with standard errors.
 #[derive(Clone, Debug, Default)]
 pub struct OrderEnergies {
+    /// Mean energy per scattering order.
     pub mean: [f64; ORDER_BINS],
+    /// Standard error per scattering order.
     pub stderr: [f64; ORDER_BINS],
+    /// Mean total energy.
     pub total: f64,
+    /// Standard error of the total.
     pub total_stderr: f64,
 }
 
@@ -139,22 +147,15 @@ fn sample_height(ndf: Ndf, alpha: f64, w: V3, h: f64, u: f64) -> Option<f64> {
 /// A normal from the visible-normal distribution ∝ max(0, wi·m) D(m), for any
 /// `wi` on the sphere (upward rays hit the surface from below the horizon).
 fn sample_visible_normal(ndf: Ndf, alpha: f64, wi: V3, rng: &mut impl Rng) -> V3 {
+    if ndf == Ndf::Ggx {
+        // The one GGX visible-normal sampler (phi first, then the cap height).
+        let u = [rng.gen::<f64>(), rng.gen::<f64>()];
+        return crate::microfacet::ggx_visible_normal(alpha, wi, u);
+    }
     // Stretch to α = 1, sample there, stretch the normal back.
     let ws = normalize([alpha * wi[0], alpha * wi[1], wi[2]]);
-    let m = match ndf {
-        Ndf::Ggx => {
-            // Dupuy & Benyoub 2023: a spherical cap of height 1 + wi.z, offset by wi.
-            let phi = 2.0 * PI * rng.gen::<f64>();
-            let z = (1.0 - rng.gen::<f64>()) * (1.0 + ws[2]) - ws[2];
-            let s = (1.0 - z * z).max(0.0).sqrt();
-            [s * phi.cos() + ws[0], s * phi.sin() + ws[1], z + ws[2]]
-        }
-        Ndf::Beckmann => {
-            let (sx, sy) = beckmann_visible_slope(ws, rng);
-            [-sx, -sy, 1.0]
-        }
-    };
-    let m = [alpha * m[0], alpha * m[1], m[2]];
+    let (sx, sy) = beckmann_visible_slope(ws, rng);
+    let m = [-alpha * sx, -alpha * sy, 1.0];
     let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
     if !(l > 0.0) || !l.is_finite() {
         return [0.0, 0.0, 1.0];

@@ -16,8 +16,11 @@ use std::f64::consts::PI;
 /// The simulated data of one τ study.
 #[derive(Clone, Debug)]
 pub struct TauStudy {
+    /// The microsurface simulated.
     pub surface: Surface,
+    /// Its normal distribution.
     pub ndf: Ndf,
+    /// The roughnesses fitted over.
     pub alphas: Vec<f64>,
     /// Includes 1.0 (the normalisation).
     pub reflectances: Vec<f64>,
@@ -28,8 +31,11 @@ pub struct TauStudy {
 /// A fitted τ (and the a1 that goes with it).
 #[derive(Clone, Copy, Debug)]
 pub struct TauFit {
+    /// The fitted tau.
     pub tau: f64,
+    /// The first-order coefficient a1 of the seed's model (tied or free).
     pub a1: f64,
+    /// RMS residual over the fitted orders.
     pub rms: f64,
 }
 

@@ -57,14 +57,17 @@ impl PiecewiseConstant {
         })
     }
 
+    /// Number of cells.
     pub fn cells(&self) -> usize {
         self.density.len()
     }
 
+    /// Cell edges (one more than cells), increasing.
     pub fn edges(&self) -> &[f64] {
         &self.edges
     }
 
+    /// Cumulative probabilities at the edges, from 0 to exactly 1.
     pub fn cdf(&self) -> &[f64] {
         &self.cdf
     }

@@ -57,26 +57,8 @@ pub fn best_cubic_step(c: &[f64; 4], x: f64) -> f64 {
 
 /// Golden-section search of the control value over [0, hi].
 pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
-    let phi = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (0.0, hi.max(x));
-    let f = |v: f64| quartic(c, v - x);
-    let (mut x1, mut x2) = (b - phi * (b - a), a + phi * (b - a));
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..60 {
-        if f1 < f2 {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - phi * (b - a);
-            f1 = f(x1);
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + phi * (b - a);
-            f2 = f(x2);
-        }
-    }
+    let br = crate::golden::golden_section(|v| quartic(c, v - x), 0.0, hi.max(x), 60, 0.0, false);
+    let (a, b) = (br.a, br.b);
     let v = 0.5 * (a + b);
     if quartic(c, v - x) < 0.0 {
         v - x

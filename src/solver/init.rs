@@ -20,23 +20,7 @@ pub fn start_alphas(lobes: usize) -> Vec<f64> {
     }
 }
 
-/// GGX normal distribution (normalised: integral of D cos dw = 1).
-pub fn ggx_d(theta_h: f64, alpha: f64) -> f64 {
-    let c2 = theta_h.cos().powi(2);
-    let t2 = (1.0 - c2) / c2.max(1e-300);
-    let a2 = alpha * alpha;
-    1.0 / (std::f64::consts::PI * a2 * c2 * c2 * (1.0 + t2 / a2).powi(2))
-}
-
-/// Smith G1 for GGX.
-pub fn ggx_g1(theta: f64, alpha: f64) -> f64 {
-    let c = theta.cos();
-    if c <= 0.0 {
-        return 0.0;
-    }
-    let t2 = (1.0 - c * c) / (c * c);
-    2.0 / (1.0 + (1.0 + alpha * alpha * t2).sqrt())
-}
+pub use crate::microfacet::{ggx_d, ggx_g1};
 
 /// A table of f(theta) on a grid's nodes (the same profile in every phi column).
 pub fn theta_table(grid: Grid, f: &dyn Fn(f64) -> f64) -> Vec<f64> {

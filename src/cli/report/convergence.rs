@@ -74,21 +74,25 @@ pub fn run(
             cfg.max_sweeps = k;
             let (part, _) =
                 fit_model(&md.samples, &cfg, &mut |_, _| {}).map_err(|e| e.to_string())?;
-            let img = crate::render::render(render_opts, |wi, wo| part.model.eval(wi, wo));
+            let bsdf = crate::bsdf::NpfBxdf::new(part.model.clone()).map_err(|e| e.to_string())?;
+            let img = crate::render::render(render_opts, &bsdf);
             conv.checkpoints.push(Checkpoint {
                 sweeps: part.history.len(),
                 seconds: part.seconds,
                 objective: part.objective,
-                render_psnr_db: crate::render::psnr(&reference.image, &img)?,
+                render_psnr_db: crate::render::psnr(&reference.image, &img)
+                    .map_err(|e| e.to_string())?,
             });
             k *= 2;
         }
-        let img = crate::render::render(render_opts, |wi, wo| full.model.eval(wi, wo));
+        let bsdf = crate::bsdf::NpfBxdf::new(full.model.clone()).map_err(|e| e.to_string())?;
+        let img = crate::render::render(render_opts, &bsdf);
         conv.checkpoints.push(Checkpoint {
             sweeps: n,
             seconds: full.seconds,
             objective: full.objective,
-            render_psnr_db: crate::render::psnr(&reference.image, &img)?,
+            render_psnr_db: crate::render::psnr(&reference.image, &img)
+                .map_err(|e| e.to_string())?,
         });
         Ok(conv)
     });

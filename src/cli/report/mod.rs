@@ -257,7 +257,7 @@ pub fn run(args: ReportArgs) -> CliResult {
                         r.eval = Some(
                             reference
                                 .evaluate_model(max_theta, &f.model)
-                                .map_err(CliError::Message)?
+                                .map_err(|e| CliError::Message(e.to_string()))?
                                 .0,
                         );
                     }

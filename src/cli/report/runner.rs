@@ -148,7 +148,9 @@ pub fn run_job(
             image: md.image.clone(),
             render: render_opts,
         };
-        let (eval, image) = reference.evaluate_model(config.max_theta, &fit.model)?;
+        let (eval, image) = reference
+            .evaluate_model(config.max_theta, &fit.model)
+            .map_err(|e| e.to_string())?;
         let dir = ws.out.join(name);
         write_png(
             &dir.join(format!("{}.png", c.name)),

@@ -1,11 +1,20 @@
-//! The renderer-facing BxDF of a fitted model: eval, sample, pdf.
+//! The factor model as a [`Bsdf`]: the model's own value
+//! ([`Model::eval`], the one evaluator) with a tabulated importance
+//! sampler.
+//!
+//! [`NpfBxdf`] wraps a [`Model`] with tables built once: per specular lobe
+//! a piecewise-constant distribution of the half vector in
+//! `t = sin^2 theta_h` proportional to `D^m(theta_h)` (so the half-vector
+//! density per solid angle is proportional to `D^m cos theta_h`), and the
+//! lobe-selection probabilities at 16 view angles.
 
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use super::dist::PiecewiseConstant;
+use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
-use npf_data_loaders::geometry::Vec3;
+use crate::sampling::PiecewiseConstant;
+use npf_data_loaders::geometry::{Angles, Vec3};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Sub-cells per D-axis interval in the half-vector tables: 4 x 90 = 360
@@ -18,8 +27,9 @@ const VIEW_MAX_DEG: f64 = 89.0;
 /// Every component with mass is chosen with at least this probability
 /// (before renormalisation), so the mixture pdf covers all of f.
 pub const SELECTION_FLOOR: f64 = 0.01;
-/// Stratified grid (per side) of the albedo estimates behind the selection.
-const ALBEDO_GRID: usize = 32;
+/// Strata in u of the albedo quadrature behind the selection (twice as many
+/// in phi_h): 48 puts five nodes inside a lobe of GGX roughness 0.02.
+const ALBEDO_GRID: usize = 48;
 /// Rec. 709 luminance, which weighs the three channels into one selection.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -37,48 +47,6 @@ pub const GL4_W: [f64; 4] = [
     0.652_145_154_862_546_1,
     0.347_854_845_137_453_9,
 ];
-
-/// Which part of the mixture drew a sample.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Component {
-    /// Cosine-weighted hemisphere.
-    Diffuse,
-    /// Half vector from specular lobe m's D table, reflected about wo.
-    Lobe(usize),
-}
-
-/// One draw of [`NpfBxdf::sample`]. A draw that leaves the upper hemisphere
-/// (or a `wo` at or below the horizon) has `pdf = 0` and zero `f`/`weight`:
-/// its direction is reported, but it carries no light.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BxdfSample {
-    /// Incident direction, unit length, local frame.
-    pub wi: Vec3,
-    /// BRDF value f(wo, wi) per channel (1/sr).
-    pub f: [f64; 3],
-    /// Mixture density of wi per solid angle, exactly [`NpfBxdf::pdf`].
-    pub pdf: f64,
-    /// f cos(theta_i) / pdf per channel (the Monte Carlo weight).
-    pub weight: [f64; 3],
-    pub component: Component,
-}
-
-impl BxdfSample {
-    fn lost(wi: Vec3, component: Component) -> Self {
-        BxdfSample {
-            wi,
-            f: [0.0; 3],
-            pdf: 0.0,
-            weight: [0.0; 3],
-            component,
-        }
-    }
-
-    /// True when the draw left the upper hemisphere (it carries no light).
-    pub fn is_lost(&self) -> bool {
-        self.pdf == 0.0
-    }
-}
 
 /// A model with its sampling tables (built once by [`NpfBxdf::new`]).
 #[derive(Clone, Debug)]
@@ -120,8 +88,8 @@ fn half_vector(wi: Vec3, wo: Vec3) -> Option<(Vec3, f64)> {
 impl NpfBxdf {
     /// Builds the tables. The model is validated first (a model read from a
     /// file already is), so a bad model is an error, never a panic.
-    pub fn new(model: Model) -> Result<Self, String> {
-        model.validate().map_err(|e| e.to_string())?;
+    pub fn new(model: Model) -> Result<Self, BsdfError> {
+        model.validate().map_err(BsdfError::InvalidModel)?;
         let lobes = model
             .lobes
             .iter()
@@ -141,6 +109,7 @@ impl NpfBxdf {
         Ok(bxdf)
     }
 
+    /// The model the tables were built for.
     pub fn model(&self) -> &Model {
         &self.model
     }
@@ -170,38 +139,27 @@ impl NpfBxdf {
         self.model.diffuse.iter().any(|&d| d > 0.0)
     }
 
-    /// Component estimates of the directional albedo (luminance) at wo:
-    /// exact for the diffuse term, stratified Monte Carlo with each lobe's
-    /// own half-vector sampling for the lobes.
+    /// Component estimates of the directional albedo (luminance) at
+    /// theta_o: exact for the diffuse term, by the one albedo quadrature
+    /// ([`super::half_vector_quadrature`], coarse: ALBEDO_GRID strata in u)
+    /// for the lobes, all lobes in one pass through [`Model::lobe_terms`].
     fn albedo_estimates(&self, theta_o: f64) -> Vec<f64> {
-        let wo = [theta_o.sin(), 0.0, theta_o.cos()];
-        let mut a = vec![0.0; self.components()];
-        a[0] = luminance(self.model.diffuse.map(f64::from)) * PI;
-        for (m, dist) in self.lobes.iter().enumerate() {
-            let Some(dist) = dist else { continue };
-            let mut sum = 0.0;
-            for i in 0..ALBEDO_GRID {
-                for j in 0..ALBEDO_GRID {
-                    let u = [
-                        (i as f64 + 0.5) / ALBEDO_GRID as f64,
-                        (j as f64 + 0.5) / ALBEDO_GRID as f64,
-                    ];
-                    let Some(wi) = sample_half_vector(dist, wo, u) else {
-                        continue;
-                    };
-                    let Some((h, t)) = half_vector(wi, wo) else {
-                        continue;
-                    };
-                    let pdf = lobe_pdf(dist, t, h[2], dot(wo, h));
-                    if pdf > 0.0 {
-                        let f = self.lobe_value(m, wi, wo);
-                        sum += luminance(f).max(0.0) * wi[2] / pdf;
-                    }
-                }
-            }
-            a[m + 1] = sum / (ALBEDO_GRID * ALBEDO_GRID) as f64;
-        }
-        a
+        let lobes = self.model.lobes.len();
+        let a = super::half_vector_quadrature(
+            theta_o,
+            ALBEDO_GRID,
+            2 * ALBEDO_GRID,
+            lobes,
+            |wo, wi, w, acc| {
+                self.model
+                    .lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
+                        acc[m] += luminance(t).max(0.0) * w;
+                    });
+            },
+        );
+        std::iter::once(luminance(self.model.diffuse.map(f64::from)) * PI)
+            .chain(a)
+            .collect()
     }
 
     fn selection_table(&self) -> Vec<f64> {
@@ -275,42 +233,11 @@ impl NpfBxdf {
             .collect()
     }
 
-    /// The specular part of lobe m alone (per channel, 1/sr).
-    fn lobe_value(&self, m: usize, wi: Vec3, wo: Vec3) -> [f64; 3] {
-        let Some(a) = FastAngles::new(wi, wo) else {
-            return [0.0; 3];
-        };
-        let l = &self.model.layout;
-        let lobe = &self.model.lobes[m];
-        let d = l.d.theta.stencil(a.theta_h).apply_f32(&lobe.d);
-        let g = l.g.theta.stencil(a.theta_i).apply_f32(&lobe.g)
-            * l.g.theta.stencil(a.theta_o).apply_f32(&lobe.g);
-        let fs = l.f.theta.stencil(a.theta_d);
-        let spec = d * g / (wi[2] * wo[2]);
-        std::array::from_fn(|c| lobe.s[c] as f64 * fs.apply_f32(&self.model.fresnel[c]) * spec)
-    }
-
-    /// BRDF value f(wo, wi) per channel (1/sr); zero when either direction is
-    /// at or below the horizon. Same value as [`Model::eval`] (angles are
-    /// computed from dot products here, more accurately near the peak).
+    /// BRDF value f(wo, wi) per channel (1/sr): exactly [`Model::eval`]
+    /// (zero when either direction is at or below the horizon, never
+    /// negative).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> [f64; 3] {
-        let Some(a) = FastAngles::new(wi, wo) else {
-            return [0.0; 3];
-        };
-        let l = &self.model.layout;
-        let ds = l.d.theta.stencil(a.theta_h);
-        let fs = l.f.theta.stencil(a.theta_d);
-        let (gi, go) = (l.g.theta.stencil(a.theta_i), l.g.theta.stencil(a.theta_o));
-        let f: [f64; 3] = std::array::from_fn(|c| fs.apply_f32(&self.model.fresnel[c]));
-        let mut v = self.model.diffuse.map(f64::from);
-        let inv = 1.0 / (wi[2] * wo[2]);
-        for lobe in &self.model.lobes {
-            let spec = ds.apply_f32(&lobe.d) * gi.apply_f32(&lobe.g) * go.apply_f32(&lobe.g) * inv;
-            for c in 0..3 {
-                v[c] += lobe.s[c] as f64 * f[c] * spec;
-            }
-        }
-        v
+        self.model.eval(wo, wi)
     }
 
     /// Mixture density (per solid angle of wi) with which [`NpfBxdf::sample`]
@@ -344,9 +271,9 @@ impl NpfBxdf {
     /// Draws wi for wo: `u_lobe` picks the component, `u` (two numbers in
     /// [0, 1)) the direction within it. See [`BxdfSample`] for draws that
     /// leave the hemisphere.
-    pub fn sample(&self, wo: Vec3, u_lobe: f64, u: [f64; 2]) -> BxdfSample {
+    pub fn sample(&self, wo: Vec3, u_lobe: f64, u: [f64; 2]) -> BsdfSample {
         if !(wo[2] > 0.0) {
-            return BxdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
+            return BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
         }
         let nc = self.components();
         let row = self.selection_row(wo[2]);
@@ -366,7 +293,7 @@ impl NpfBxdf {
             }
         }
         let Some(c) = component.or(last) else {
-            return BxdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
+            return BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
         };
         let (wi, component) = if c == 0 {
             (cosine_hemisphere(u), Component::Diffuse)
@@ -377,23 +304,15 @@ impl NpfBxdf {
                 Some(wi) => (wi, Component::Lobe(m)),
                 None => {
                     let wi = reflect_raw(dist, wo, u);
-                    return BxdfSample::lost(wi, Component::Lobe(m));
+                    return BsdfSample::lost(wi, Component::Lobe(m));
                 }
             }
         };
         let pdf = self.pdf(wo, wi);
         if !(pdf > 0.0) || !(wi[2] > 0.0) {
-            return BxdfSample::lost(wi, component);
+            return BsdfSample::lost(wi, component);
         }
-        let f = self.eval(wo, wi);
-        let weight = f.map(|v| v * wi[2] / pdf);
-        BxdfSample {
-            wi,
-            f,
-            pdf,
-            weight,
-            component,
-        }
+        BsdfSample::new(wi, self.eval(wo, wi), pdf, component)
     }
 
     /// Probability that [`NpfBxdf::sample`] returns a draw below the
@@ -485,9 +404,7 @@ fn reflect_raw(dist: &PiecewiseConstant, wo: Vec3, u: [f64; 2]) -> Vec3 {
     let t = dist.sample(u[0]);
     let (sin_h, cos_h) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
     let (sp, cp) = (2.0 * PI * u[1]).sin_cos();
-    let h = [sin_h * cp, sin_h * sp, cos_h];
-    let k = 2.0 * dot(wo, h);
-    [k * h[0] - wo[0], k * h[1] - wo[1], k * h[2] - wo[2]]
+    reflect(wo, [sin_h * cp, sin_h * sp, cos_h])
 }
 
 /// wi from a half vector drawn from a lobe table; None when it leaves the
@@ -509,15 +426,6 @@ fn sample_half_vector(dist: &PiecewiseConstant, wo: Vec3, u: [f64; 2]) -> Option
     } else {
         None
     }
-}
-
-/// Cosine-weighted hemisphere (Malley's method with a uniform disk).
-#[inline]
-fn cosine_hemisphere(u: [f64; 2]) -> Vec3 {
-    let r = u[0].clamp(0.0, 1.0).sqrt();
-    let (sp, cp) = (2.0 * PI * u[1]).sin_cos();
-    let z = (1.0 - u[0].clamp(0.0, 1.0)).max(0.0).sqrt();
-    [r * cp, r * sp, z]
 }
 
 /// Cells whose mass is below this fraction of the lobe's total get none:
@@ -624,34 +532,21 @@ fn g_product_bound(model: &Model, g: &[f32]) -> impl Fn(f64) -> f64 {
     }
 }
 
-/// The angles the model's factors read, from dot products.
-struct FastAngles {
-    theta_h: f64,
-    theta_d: f64,
-    theta_i: f64,
-    theta_o: f64,
-}
+impl Bsdf for NpfBxdf {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> [f64; 3] {
+        NpfBxdf::eval(self, wo, wi)
+    }
 
-impl FastAngles {
-    #[inline]
-    fn new(wi: Vec3, wo: Vec3) -> Option<Self> {
-        if !(wi[2] > 0.0 && wo[2] > 0.0) {
-            return None;
-        }
-        let (h, t) = half_vector(wi, wo)?;
-        let theta_h = t.sqrt().atan2(h[2]);
-        let c = [
-            wi[1] * h[2] - wi[2] * h[1],
-            wi[2] * h[0] - wi[0] * h[2],
-            wi[0] * h[1] - wi[1] * h[0],
-        ];
-        let theta_d = dot(c, c).sqrt().atan2(dot(wi, h));
-        Some(FastAngles {
-            theta_h,
-            theta_d,
-            theta_i: wi[2].min(1.0).acos(),
-            theta_o: wo[2].min(1.0).acos(),
-        })
+    fn sample(&self, wo: Vec3, uc: f64, u: [f64; 2]) -> Option<BsdfSample> {
+        Some(NpfBxdf::sample(self, wo, unit(uc), u)).filter(|s| !s.is_lost())
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        NpfBxdf::pdf(self, wo, wi)
+    }
+
+    fn eval_angles(&self, a: &Angles) -> [f64; 3] {
+        self.model.eval_angles(a)
     }
 }
 
@@ -668,7 +563,7 @@ mod tests {
             let wo = npf_data_loaders::geometry::spherical(0.03 * k as f64, 0.1 * k as f64);
             let wi =
                 npf_data_loaders::geometry::spherical(0.5 + 0.01 * k as f64, 2.0 + 0.07 * k as f64);
-            let (a, m) = (b.eval(wo, wi), b.model().eval(wi, wo));
+            let (a, m) = (b.eval(wo, wi), b.model().eval(wo, wi));
             for c in 0..3 {
                 assert!(
                     (a[c] - m[c]).abs() <= 1e-9 * m[c].abs() + 1e-12,

@@ -1,0 +1,38 @@
+//! A measured MERL table as a [`Bsdf`]: its own (truncating) lookup, zero
+//! for missing cells and below the horizon, drawn by cosine-weighted
+//! hemisphere sampling (the table has no sampler of its own).
+
+use super::{cosine_hemisphere, cosine_hemisphere_pdf, Bsdf, BsdfSample, Component};
+use npf_data_loaders::geometry::{half_diff_from_directions, Angles, Vec3};
+use npf_data_loaders::MerlTable;
+
+impl Bsdf for MerlTable {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> [f64; 3] {
+        if wi[2] <= 0.0 || wo[2] <= 0.0 {
+            return [0.0; 3];
+        }
+        let (th, _ph, td, pd) = half_diff_from_directions(wi, wo);
+        self.lookup(th, td, pd).unwrap_or([0.0; 3])
+    }
+
+    fn sample(&self, wo: Vec3, _uc: f64, u: [f64; 2]) -> Option<BsdfSample> {
+        if !(wo[2] > 0.0) {
+            return None;
+        }
+        let wi = cosine_hemisphere(u);
+        let s = BsdfSample::new(wi, self.eval(wo, wi), self.pdf(wo, wi), Component::Diffuse);
+        (!s.is_lost()).then_some(s)
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        if !(wo[2] > 0.0) {
+            return 0.0;
+        }
+        cosine_hemisphere_pdf(wi)
+    }
+
+    fn eval_angles(&self, a: &Angles) -> [f64; 3] {
+        self.lookup(a.theta_h, a.theta_d, a.phi_d)
+            .unwrap_or([0.0; 3])
+    }
+}
