@@ -24,6 +24,18 @@ pub enum Error {
     /// A model that breaks its layout's rules.
     #[error(transparent)]
     Model(#[from] crate::model::ModelError),
+    /// A model that cannot be turned into a sampler.
+    #[error(transparent)]
+    Bsdf(#[from] crate::bsdf::BsdfError),
+    /// An evaluation against a reference failed.
+    #[error(transparent)]
+    Eval(#[from] crate::evaluation::EvalError),
+    /// Two renders could not be compared.
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
+    /// The GGX baseline fit failed.
+    #[error(transparent)]
+    Ggx(#[from] crate::baselines::GgxFitError),
 }
 
 /// `Result` with the library's [`Error`].

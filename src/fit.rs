@@ -221,41 +221,41 @@ fn run_kind(
     config.validate()?;
     let layout = config.layout();
     let so = config.sample_options();
-    match config.model {
-        ModelKind::Factor => {
+    // Both factor kinds are one run of the shared solver; Independent-G is
+    // three lobes with lobe C lighting channel C only, so the objective
+    // separates per channel and this solves the three per-channel problems
+    // together, with one history.
+    let factor_fit =
+        |opts: FitOptions, start: Factors, observer: &mut dyn FnMut(usize, &SweepReport)| {
             let set = FitSet::build(samples, layout, so)?;
-            let mut obs = |r: &SweepReport| observer(0, r);
-            let result = Executor::new(&set, config.fit_options())
-                .observe(&mut obs)
-                .run()?;
-            Ok(Produced {
-                result,
-                ggx: None,
-                set_len: Some(set.len()),
-            })
-        }
-        ModelKind::IndependentG => {
-            // One fit of the shared solver: lobe C lights channel C only, so
-            // the objective separates per channel and this is the three
-            // per-channel problems solved together, with one history.
-            let opts = FitOptions {
-                lobes: 3,
-                channel_mask: INDEPENDENT_CHANNELS,
-                ..config.fit_options()
-            };
-            let set = FitSet::build(samples, layout, so)?;
-            let alpha = init::start_alphas(1)[0];
-            let start = init::initial_factors_with(layout, &[alpha; 3]);
             let mut obs = |r: &SweepReport| observer(0, r);
             let result = Executor::new(&set, opts)
                 .start_from(start)
                 .observe(&mut obs)
                 .run()?;
-            Ok(Produced {
+            Ok::<_, FitError>(Produced {
                 result,
                 ggx: None,
                 set_len: Some(set.len()),
             })
+        };
+    match config.model {
+        ModelKind::Factor => {
+            let opts = config.fit_options();
+            factor_fit(opts, init::initial_factors(layout, opts.lobes), observer)
+        }
+        ModelKind::IndependentG => {
+            let opts = FitOptions {
+                lobes: 3,
+                channel_mask: INDEPENDENT_CHANNELS,
+                ..config.fit_options()
+            };
+            let alpha = init::start_alphas(1)[0];
+            factor_fit(
+                opts,
+                init::initial_factors_with(layout, &[alpha; 3]),
+                observer,
+            )
         }
         ModelKind::Ggx => {
             let fit = fit_ggx(samples, so)?;

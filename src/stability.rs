@@ -10,8 +10,8 @@
 //! and the time. `tests/stability.rs` runs a reduced grid in CI;
 //! `examples/stability_report.rs` runs the full grid.
 
-use crate::metrics::compare_model;
 use crate::fit::FitConfig;
+use crate::metrics::compare_model;
 use crate::model::Model;
 use crate::samples::{FitSet, Weighting};
 use crate::solver::{Executor, FitOptions, GMethod};

@@ -4,12 +4,15 @@
 //! that path, so a message printed on its own is enough to act on.
 use std::path::{Path, PathBuf};
 
+/// Why a file could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     /// The operating system refused a read, write, create or rename.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The operating system's error.
         source: std::io::Error,
     },
     /// The file is not exactly as long as the format requires.
@@ -18,8 +21,11 @@ pub enum LoadError {
         size_problem(*.expected, *.actual)
     )]
     WrongSize {
+        /// The file.
         path: PathBuf,
+        /// The size the format requires (bytes).
         expected: u64,
+        /// The file's size (bytes).
         actual: u64,
     },
     /// The header dimensions are not those of a MERL table.
@@ -27,23 +33,39 @@ pub enum LoadError {
         "{path}: not a MERL table, header dimensions are {} {} {} (expected 90 90 180)",
         .dims[0], .dims[1], .dims[2]
     )]
-    BadHeader { path: PathBuf, dims: [i32; 3] },
+    BadHeader {
+        /// The file.
+        path: PathBuf,
+        /// The header's three dimensions.
+        dims: [i32; 3],
+    },
     /// The first NaN or infinite value found (channel 0 = red, 1 = green, 2 = blue).
     #[error(
         "{path}: value is NaN or infinite ({} channel, cell {cell})",
         channel_name(*.channel)
     )]
     NonFinite {
+        /// The file.
         path: PathBuf,
+        /// The channel (0 red, 1 green, 2 blue).
         channel: usize,
+        /// The cell index within the channel.
         cell: usize,
     },
     /// The output file exists and overwriting was not asked for.
     #[error("{path}: already exists (refusing to overwrite)")]
-    Exists { path: PathBuf },
+    Exists {
+        /// The file.
+        path: PathBuf,
+    },
     /// Anything else wrong with the contents.
     #[error("{path}: {problem}")]
-    Invalid { path: PathBuf, problem: String },
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        problem: String,
+    },
 }
 
 fn size_problem(expected: u64, actual: u64) -> &'static str {

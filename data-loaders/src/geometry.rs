@@ -4,30 +4,42 @@
 //! phi_h); the difference vector d is wi expressed in the frame where h is the
 //! pole (rotate by -phi_h about z, then by -theta_h about y).
 
+/// A direction or vector in the local shading frame (normal +z).
 pub type Vec3 = [f64; 3];
 
 /// Angles of one (wi, wo) configuration in both parameterisations.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Angles {
+    /// Polar angle of the half vector.
     pub theta_h: f64,
+    /// Azimuth of the half vector.
     pub phi_h: f64,
+    /// Polar angle of the difference vector (wi in the half vector's frame).
     pub theta_d: f64,
+    /// Azimuth of the difference vector.
     pub phi_d: f64,
+    /// Polar angle of wi (towards the light).
     pub theta_i: f64,
+    /// Azimuth of wi.
     pub phi_i: f64,
+    /// Polar angle of wo (towards the viewer).
     pub theta_o: f64,
+    /// Azimuth of wo.
     pub phi_o: f64,
 }
 
+/// The dot product.
 pub fn dot(a: Vec3, b: Vec3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The unit vector along `a`.
 pub fn normalize(a: Vec3) -> Vec3 {
     let n = dot(a, a).sqrt();
     [a[0] / n, a[1] / n, a[2] / n]
 }
 
+/// The unit direction with polar angle `theta` and azimuth `phi`.
 pub fn spherical(theta: f64, phi: f64) -> Vec3 {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = phi.sin_cos();
@@ -73,6 +85,7 @@ pub fn half_diff_from_directions(wi: Vec3, wo: Vec3) -> (f64, f64, f64, f64) {
 }
 
 impl Angles {
+    /// The configuration given by Rusinkiewicz half/difference angles.
     pub fn from_half_diff(theta_h: f64, phi_h: f64, theta_d: f64, phi_d: f64) -> Self {
         let (wi, wo) = directions_from_half_diff(theta_h, phi_h, theta_d, phi_d);
         let (theta_i, phi_i) = angles_of(wi);
@@ -89,6 +102,7 @@ impl Angles {
         }
     }
 
+    /// The configuration of two unit directions above the surface.
     pub fn from_directions(wi: Vec3, wo: Vec3) -> Self {
         let (theta_h, phi_h, theta_d, phi_d) = half_diff_from_directions(wi, wo);
         let (theta_i, phi_i) = angles_of(wi);

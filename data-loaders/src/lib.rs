@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! File formats in, sample sets out.
 //!
 //! Each format module reads a measured BRDF file into a table that keeps the

@@ -49,8 +49,11 @@ const HEADER_BYTES: usize = 12;
 const EDGE_TOLERANCE: f64 = 1e-9;
 
 impl MerlTable {
+    /// theta_h cells (square-root spaced).
     pub const RES_THETA_H: usize = 90;
+    /// theta_d cells (1 degree each).
     pub const RES_THETA_D: usize = 90;
+    /// phi_d cells over [0, pi) (reciprocity folds the rest).
     pub const RES_PHI_D: usize = 180;
     /// Cells per channel.
     pub const CELLS: usize = 1_458_000;

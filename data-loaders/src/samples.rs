@@ -5,7 +5,9 @@ use crate::geometry::Angles;
 /// One valid measurement: its configuration and RGB value in 1/sr.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeasuredSample {
+    /// The configuration.
     pub angles: Angles,
+    /// Linear RGB BRDF value (1/sr).
     pub rgb: [f64; 3],
 }
 
@@ -16,6 +18,7 @@ pub struct MeasuredSamples {
     pub source: String,
     /// True for isotropic data (phi_h carries no information).
     pub isotropic: bool,
+    /// The valid measurements.
     pub samples: Vec<MeasuredSample>,
     /// How many cells of the source were missing (negative or absent).
     pub missing: usize,

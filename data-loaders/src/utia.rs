@@ -53,7 +53,9 @@ impl UtiaTable {
     pub const N_THETA: usize = 6;
     /// Azimuths per direction (0°..352.5°).
     pub const N_PHI: usize = 48;
+    /// Elevation step (degrees).
     pub const THETA_STEP_DEG: f64 = 15.0;
+    /// Azimuth step (degrees).
     pub const PHI_STEP_DEG: f64 = 7.5;
     /// Cells per channel: 6 · 48 · 6 · 48.
     pub const CELLS: usize = 82_944;

@@ -3,10 +3,10 @@
 //! second MERL table against a reference table, and optionally the two
 //! sphere renders and their difference as PNG.
 
+use super::png::encode_png;
 use super::{check_output, CliError, CliResult};
 use crate::evaluation::{Evaluation, Reference};
 use crate::modelfile::{self, Form};
-use super::png::encode_png;
 use crate::render::{difference_rgb8, Image, RenderOptions};
 use clap::Args;
 use npf_data_loaders::atomic::write_bytes_atomic;

@@ -1,6 +1,7 @@
 //! `npf energy ...`: albedo tables, E_avg fits, white-furnace checks, the
 //! seed's reflectance factors and the microsurface simulator.
 
+use super::energy_plot as plot;
 use super::{check_output, CliError, CliResult};
 use crate::energy::albedo::{AlbedoTable, Model, DEFAULT_TOL};
 use crate::energy::compensation::{furnace, max_error, FurnacePoint};
@@ -8,7 +9,6 @@ use crate::energy::fit::{fit_avg, seed_fit};
 use crate::energy::microfacet::Ndf;
 use crate::energy::series::{self, check_seed_constants};
 use crate::energy::simulate::{simulate, SimConfig, Surface, ORDER_BINS};
-use super::energy_plot as plot;
 use crate::energy::tau;
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};

@@ -2,10 +2,10 @@
 //! our fit and the seed's, and the white-furnace curves (single scattering,
 //! compensation, sum).
 
+use super::charts::ensure_font;
 use crate::energy::albedo::AlbedoTable;
 use crate::energy::compensation::FurnacePoint;
 use crate::energy::fit::{fit_avg, seed_fit};
-use super::charts::ensure_font;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;

@@ -376,7 +376,8 @@ fn select(
             (i, record)
         }
         Selection::Budget(budget, metric) => {
-            let Some((i, trials)) = selection::best_within(budget, metric, &mut try_candidate)? else {
+            let Some((i, trials)) = selection::best_within(budget, metric, &mut try_candidate)?
+            else {
                 return Err(CliError::Message(format!(
                     "--budget {budget}: no candidate model has that few parameters (the smallest has {})",
                     selection::candidates()[0].params()

@@ -5,7 +5,7 @@ use super::gauge::{d_measure, fill_unconstrained, normalise};
 use super::init::initial_factors;
 use super::state::{Factors, State};
 use super::updates::{update_d, update_diffuse_and_scales, update_f, Scratch};
-use super::{SolverError, FitOptions, MAX_LOBES};
+use super::{FitOptions, SolverError, MAX_LOBES};
 use crate::grid::Grid;
 use crate::model::Model;
 use crate::samples::FitSet;

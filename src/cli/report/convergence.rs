@@ -40,12 +40,7 @@ pub const CONFIGS: [&str; 3] = ["sf-3", "sf-3-golden", "sf-3-fixed-g"];
 
 /// Fit configuration `c` on material `m` fully, then refit it stopped after
 /// 1, 2, 4, ... sweeps, recording objective and rendering PSNR; in one thread.
-pub fn run(
-    ws: &Workspace,
-    m: usize,
-    c: &Configuration,
-    max_sweeps: Option<usize>,
-) -> Convergence {
+pub fn run(ws: &Workspace, m: usize, c: &Configuration, max_sweeps: Option<usize>) -> Convergence {
     let render_opts = ws.render;
     let r = one_thread(|| -> Result<Convergence, String> {
         let md = ws.load(m).as_ref().map_err(|e| e.clone())?;

@@ -58,9 +58,11 @@ pub fn read(path: &Path) -> Result<Vec<Row>, CliError> {
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
     {
-        rows.push(serde_json::from_str(line).map_err(|e| {
-            CliError::Message(format!("{}: line {}: {e}", path.display(), k + 1))
-        })?);
+        rows.push(
+            serde_json::from_str(line).map_err(|e| {
+                CliError::Message(format!("{}: line {}: {e}", path.display(), k + 1))
+            })?,
+        );
     }
     Ok(rows)
 }
