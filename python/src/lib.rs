@@ -108,13 +108,19 @@ fn rows<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<[f6
             )))
         }
     };
-    let mut out = Vec::with_capacity(view.nrows());
-    for (i, r) in view.axis_iter(NdAxis(0)).enumerate() {
-        let row: [f64; K] = std::array::from_fn(|k| r[k]);
-        if row.iter().any(|x| !x.is_finite()) {
-            return Err(value_error(format!("{name} row {i} is not finite: {row:?}")));
-        }
-        out.push(row);
+    let out: Vec<[f64; K]> = match view.as_slice() {
+        // C-contiguous (what numpy makes by default): one pass over memory.
+        Some(flat) => flat
+            .chunks_exact(K)
+            .map(|r| std::array::from_fn(|k| r[k]))
+            .collect(),
+        None => view
+            .axis_iter(NdAxis(0))
+            .map(|r| std::array::from_fn(|k| r[k]))
+            .collect(),
+    };
+    if let Some(i) = out.iter().position(|r| r.iter().any(|x| !x.is_finite())) {
+        return Err(value_error(format!("{name} row {i} is not finite: {:?}", out[i])));
     }
     Ok((out, single))
 }
@@ -145,9 +151,7 @@ fn same_length(a: usize, b: usize, what: &str) -> PyResult<()> {
 
 /// An (N, 3) result, or (3,) when the input was one direction.
 fn rgb_array(py: Python<'_>, v: Vec<[f64; 3]>, single: bool) -> PyResult<PyObject> {
-    let n = v.len();
-    let flat: Vec<f64> = v.into_iter().flatten().collect();
-    let a = Array2::from_shape_vec((n, 3), flat).map_err(display_error)?;
+    let a = Array2::from(v);
     if single {
         Ok(a.row(0).to_owned().into_pyarray(py).into_any().unbind())
     } else {
@@ -168,11 +172,13 @@ fn read_only<'py, T>(a: Bound<'py, T>) -> PyResult<Bound<'py, T>> {
     Ok(a)
 }
 
-/// Runs `f` on every element in parallel chunks.
-fn par_map<T: Sync, U: Send>(input: &[T], f: impl Fn(&T) -> U + Sync) -> Vec<U> {
-    input
-        .par_chunks(CHUNK)
-        .flat_map_iter(|c| c.iter().map(&f))
+/// Runs `f` on every pair of elements in parallel (an indexed collect:
+/// results are written in place).
+fn par_zip<A: Sync, B: Sync, U: Send>(a: &[A], b: &[B], f: impl Fn(&A, &B) -> U + Sync) -> Vec<U> {
+    a.par_iter()
+        .zip(b.par_iter())
+        .with_min_len(CHUNK)
+        .map(|(a, b)| f(a, b))
         .collect()
 }
 
@@ -277,14 +283,14 @@ impl PyModel {
     }
 
     /// The draw for one view direction: `u` is (component, u1, u2), or
-    /// (u1, u2) with the component picked by u1 and u1 rescaled within it
-    /// (one number does both jobs, stratification intact).
-    fn draw(b: &NpfBxdf, wo: Vec3, u: &[f64]) -> BsdfSample {
+    /// (NaN, u1, u2) with the component picked by u1 and u1 rescaled within
+    /// it (one number does both jobs, stratification intact).
+    fn draw(b: &NpfBxdf, wo: Vec3, u: &[f64; 3]) -> BsdfSample {
         let clamp = |x: f64| x.clamp(0.0, 1.0 - f64::EPSILON / 2.0);
-        if u.len() == 3 {
+        if !u[0].is_nan() {
             return b.sample(wo, clamp(u[0]), [clamp(u[1]), clamp(u[2])]);
         }
-        let (u0, u1) = (clamp(u[0]), clamp(u[1]));
+        let (u0, u1) = (clamp(u[1]), clamp(u[2]));
         let probs = b.selection_probabilities(wo);
         let mut acc = 0.0;
         let mut rescaled = u0;
@@ -558,8 +564,7 @@ impl PyModel {
         let (wo, s2) = directions(wo, "wo")?;
         same_length(wi.len(), wo.len(), "wi and wo")?;
         let m = self.model();
-        let pairs: Vec<(Vec3, Vec3)> = wi.into_iter().zip(wo).collect();
-        let v = py.allow_threads(|| par_map(&pairs, |(wi, wo)| m.eval(*wo, *wi)));
+        let v = py.allow_threads(|| par_zip(&wi, &wo, |wi, wo| m.eval(*wo, *wi)));
         rgb_array(py, v, s1 && s2)
     }
 
@@ -571,20 +576,21 @@ impl PyModel {
     /// Draws below the horizon carry pdf 0 and weight 0.
     fn sample(&self, py: Python<'_>, wo: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(PyObject, PyObject, PyObject)> {
         let (wo, s1) = directions(wo, "wo")?;
-        let u: Vec<Vec<f64>> = match rows::<3>(u, "u") {
-            Ok((u, _)) => u.into_iter().map(|r| r.to_vec()).collect(),
+        // (N, 3) as is; (N, 2) padded with a NaN in front, which `draw`
+        // reads as "pick the component with u1".
+        let u: Vec<[f64; 3]> = match rows::<3>(u, "u") {
+            Ok((u, _)) => u,
             Err(_) => rows::<2>(u, "u")
                 .map_err(|_| value_error(format!("u must have shape (N, 2) or (N, 3) of finite floats, got {}", describe(u))))?
                 .0
                 .into_iter()
-                .map(|r| r.to_vec())
+                .map(|r| [f64::NAN, r[0], r[1]])
                 .collect(),
         };
         same_length(wo.len(), u.len(), "wo and u")?;
         let draws = py.allow_threads(|| -> PyResult<Vec<BsdfSample>> {
             let b = self.bxdf()?;
-            let pairs: Vec<(Vec3, &[f64])> = wo.iter().copied().zip(u.iter().map(|r| r.as_slice())).collect();
-            Ok(par_map(&pairs, |(wo, u)| Self::draw(b, *wo, u)))
+            Ok(par_zip(&wo, &u, |wo, u| Self::draw(b, *wo, u)))
         })?;
         let wi = draws.iter().map(|d| d.wi).collect();
         let pdf = draws.iter().map(|d| d.pdf).collect();
@@ -598,10 +604,9 @@ impl PyModel {
         let (wo, s1) = directions(wo, "wo")?;
         let (wi, s2) = directions(wi, "wi")?;
         same_length(wi.len(), wo.len(), "wo and wi")?;
-        let pairs: Vec<(Vec3, Vec3)> = wo.into_iter().zip(wi).collect();
         let v = py.allow_threads(|| -> PyResult<Vec<f64>> {
             let b = self.bxdf()?;
-            Ok(par_map(&pairs, |(wo, wi)| b.pdf(*wo, *wi)))
+            Ok(par_zip(&wo, &wi, |wo, wi| b.pdf(*wo, *wi)))
         })?;
         Ok(scalar_array(py, v, s1 && s2))
     }
@@ -666,8 +671,33 @@ impl PyModel {
     /// One draw (the plugin's scalar path): (wi, pdf, weight) as tuples.
     #[allow(clippy::type_complexity)]
     fn _sample1(&self, wo: (f64, f64, f64), u: (f64, f64, f64)) -> PyResult<((f64, f64, f64), f64, (f64, f64, f64))> {
-        let d = Self::draw(self.bxdf()?, [wo.0, wo.1, wo.2], &[u.0, u.1, u.2]);
+        let u = [u.0, u.1, u.2].map(|x| if x.is_finite() { x } else { 0.0 });
+        let d = Self::draw(self.bxdf()?, [wo.0, wo.1, wo.2], &u);
         Ok(((d.wi[0], d.wi[1], d.wi[2]), d.pdf, (d.weight[0], d.weight[1], d.weight[2])))
+    }
+
+    /// Seconds the batched kernels alone take on already converted arrays
+    /// (eval, sample, pdf; no numpy in or out): what examples/python_bench.py
+    /// compares the public calls with, to measure the binding's overhead.
+    fn _kernel_seconds(&self, py: Python<'_>, wi: &Bound<'_, PyAny>, wo: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(f64, f64, f64)> {
+        let (wi, _) = directions(wi, "wi")?;
+        let (wo, _) = directions(wo, "wo")?;
+        let (u, _) = rows::<3>(u, "u")?;
+        same_length(wi.len(), wo.len(), "wi and wo")?;
+        same_length(wo.len(), u.len(), "wo and u")?;
+        let m = self.model();
+        py.allow_threads(|| {
+            let b = self.bxdf()?;
+            let time = |f: &dyn Fn() -> f64| {
+                let t = std::time::Instant::now();
+                std::hint::black_box(f());
+                t.elapsed().as_secs_f64()
+            };
+            let e = time(&|| par_zip(&wi, &wo, |wi, wo| m.eval(*wo, *wi)).len() as f64);
+            let s = time(&|| par_zip(&wo, &u, |wo, u| Self::draw(b, *wo, u).pdf).iter().sum());
+            let p = time(&|| par_zip(&wo, &wi, |wo, wi| b.pdf(*wo, *wi)).iter().sum());
+            Ok((e, s, p))
+        })
     }
 
     fn __repr__(&self) -> String {
