@@ -18,9 +18,10 @@ Mitsuba's ``wo`` towards the light (npf's ``wi``). The BSDF is one-sided (zero
 when either direction is below the surface), reflection only.
 
 Variants: ``scalar_rgb`` calls npf once per query (tested in
-python/tests/test_mitsuba.py); the vectorised RGB variants (``llvm_ad_rgb``,
-``cuda_ad_rgb``) hand over whole wavefronts, which go to npf's batched calls
-through numpy. Those need Dr.Jit's symbolic loops and calls switched off
+python/tests/test_mitsuba.py, renders included); the vectorised RGB variants
+(``llvm_ad_rgb``, ``cuda_ad_rgb``) hand over whole wavefronts, which go to
+npf's batched calls through numpy (llvm's calls are tested, not its renders;
+see docs/python.md). Those need Dr.Jit's symbolic loops and calls switched off
 (``register`` does it), since npf runs on concrete arrays; they are not
 differentiable (npf's parameters are not Dr.Jit variables). Spectral and
 polarised variants are not supported (npf's models are RGB); ``mono``
