@@ -7,6 +7,9 @@
 //! The Python package (`python/npf/`) re-exports this module and adds the
 //! Mitsuba plugin; the stubs are in `python/npf/_npf.pyi`.
 
+// `!(x > 0.0)` is deliberate: it also rejects NaN (as in npf::bsdf).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use npf::bsdf::{self, Bsdf, BsdfSample, NpfBxdf};
 use npf::fit::{FitConfig, ModelKind};
 use npf::loaders::geometry::Vec3;
@@ -588,13 +591,21 @@ impl PyModel {
                 .collect(),
         };
         same_length(wo.len(), u.len(), "wo and u")?;
-        let draws = py.allow_threads(|| -> PyResult<Vec<BsdfSample>> {
+        // Straight into the three outputs (no intermediate draw list).
+        type Outputs = (Vec<Vec3>, (Vec<f64>, Vec<[f64; 3]>));
+        let (wi, (pdf, weight)): Outputs = py.allow_threads(|| {
             let b = self.bxdf()?;
-            Ok(par_zip(&wo, &u, |wo, u| Self::draw(b, *wo, u)))
+            Ok::<_, PyErr>(
+                wo.par_iter()
+                    .zip(u.par_iter())
+                    .with_min_len(CHUNK)
+                    .map(|(wo, u)| {
+                        let d = Self::draw(b, *wo, u);
+                        (d.wi, (d.pdf, d.weight))
+                    })
+                    .unzip(),
+            )
         })?;
-        let wi = draws.iter().map(|d| d.wi).collect();
-        let pdf = draws.iter().map(|d| d.pdf).collect();
-        let weight = draws.iter().map(|d| d.weight).collect();
         Ok((rgb_array(py, wi, s1)?, scalar_array(py, pdf, s1), rgb_array(py, weight, s1)?))
     }
 

@@ -1,6 +1,8 @@
 """npf.fit from Python: known factors come back, progress is reported, the
 result is the CLI's model."""
 
+import threading
+
 import numpy as np
 import pytest
 
@@ -43,14 +45,27 @@ def test_fit_from_a_path_is_the_cli_fit(tmp_path):
     assert py.fit_info["source"].endswith("t.binary")
 
 
-def test_progress_errors_are_raised_after_the_fit():
+def test_progress_errors_are_raised_after_the_fit_and_the_gil_is_free():
     table = known_factor_model((0.3,)).reconstruct()
+    table[..., np.arange(180) % 6 != 0] = -1  # a sparse table: a quick fit
 
     def boom(report):
         raise KeyError("stop")
 
     with pytest.raises(KeyError, match="stop"):
         npf.fit(table, lobes=1, max_sweeps=2, progress=boom)
+
+    # While a fit runs in another thread, this one keeps running Python
+    # (a fit holding the GIL would freeze it for seconds).
+    result = {}
+    worker = threading.Thread(target=lambda: result.update(model=npf.fit(table, lobes=1, max_sweeps=2)))
+    worker.start()
+    spins = 0
+    while worker.is_alive():
+        spins += 1
+    worker.join()
+    assert result["model"].lobes == 1
+    assert spins > 10_000, spins
 
 
 @pytest.mark.parametrize(
