@@ -30,6 +30,9 @@ use std::sync::{Mutex, OnceLock};
 /// MERL table shape as numpy sees it: channel, theta_h, theta_d, phi_d.
 const MERL_SHAPE: [usize; 4] = [3, MerlTable::RES_THETA_H, MerlTable::RES_THETA_D, MerlTable::RES_PHI_D];
 
+/// Most fit threads accepted: more is a mistake, not a configuration.
+const MAX_THREADS: usize = 1024;
+
 /// Rows per rayon task: large enough that scheduling costs nothing next to
 /// the kernels, small enough that two cores share a batch evenly.
 const CHUNK: usize = 4096;
@@ -79,9 +82,13 @@ fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, 
     let array = if let Ok(u) = obj.downcast::<PyUntypedArray>() {
         u.clone().into_any()
     } else {
+        // A sequence (nested lists of numbers): numbers of any kind are
+        // meant as floats; only numpy arrays have a dtype to check.
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("dtype", "float64")?;
         py.import("numpy")?
-            .call_method1("asarray", (obj,))
-            .map_err(|_| PyTypeError::new_err(format!("{name} must be a numpy array of floats")))?
+            .call_method("asarray", (obj,), Some(&kwargs))
+            .map_err(|_| PyTypeError::new_err(format!("{name} must be a numpy array of floats (or a nested sequence of numbers)")))?
     };
     let u = array.downcast::<PyUntypedArray>()?;
     let kind = u.dtype().kind();
@@ -837,6 +844,14 @@ fn fit(
         if !v.is_finite() {
             return Err(value_error(format!("{name} must be a finite number, got {v}")));
         }
+    }
+    if let Some(cb) = &progress {
+        if !cb.bind(py).is_callable() {
+            return Err(PyTypeError::new_err("progress must be a callable (it receives each sweep's report dict)"));
+        }
+    }
+    if threads > MAX_THREADS {
+        return Err(value_error(format!("threads must be 0 (all cores) to {MAX_THREADS}, got {threads}")));
     }
     // Checked before reading the input, so a bad option costs nothing.
     config.validate().map_err(display_error)?;

@@ -28,6 +28,7 @@ GOOD = np.array([[0.0, 0.0, 1.0]])
         (np.array([[0, 0, 1]], dtype=np.complex128), TypeError, "floats"),
         (np.array([["a", "b", "c"]]), TypeError, "floats"),
         ("not an array", TypeError, "floats"),
+        ([[0, "x", 1]], TypeError, "floats"),
     ],
 )
 def test_bad_directions(model, bad, exc, message):
@@ -53,6 +54,7 @@ def test_mismatched_lengths_and_bad_random_numbers(model):
 def test_float32_and_lists_are_accepted(model):
     ref = model.eval(GOOD, GOOD)
     np.testing.assert_allclose(model.eval(GOOD.astype(np.float32), [[0.0, 0.0, 1.0]]), ref)
+    np.testing.assert_array_equal(model.eval([[0, 0, 1]], (0, 0, 1)), ref[0] * np.ones((1, 3)))
     # Non-contiguous views read the right values.
     wide = np.zeros((1, 6))
     wide[0, 2] = wide[0, 5] = 1

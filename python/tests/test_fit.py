@@ -78,9 +78,15 @@ def test_progress_errors_are_raised_after_the_fit_and_the_gil_is_free():
         (dict(g_method="magic"), "unknown g_method"),
         (dict(nodes=2), "values per factor table"),
         (dict(tol=float("nan")), "finite"),
+        (dict(threads=100_000), "threads"),
     ],
 )
 def test_bad_fit_options_raise_value_error(kwargs, message):
     table = np.full((3, 90, 90, 180), 0.1)
     with pytest.raises(ValueError, match=message):
         npf.fit(table, **kwargs)
+
+
+def test_a_progress_that_is_not_callable_is_refused_before_fitting():
+    with pytest.raises(TypeError, match="callable"):
+        npf.fit(np.full((3, 90, 90, 180), 0.1), progress="yes")
