@@ -19,7 +19,10 @@ use npf::modelfile::{self, ModelFile, ModelFileError};
 use npf::samples::Weighting;
 use npf::solver::{GMethod, SweepReport};
 use numpy::ndarray::{Array1, Array2, Array4, ArrayView2, Axis as NdAxis};
-use numpy::{IntoPyArray, PyArrayDescrMethods, PyArray1, PyArray2, PyArray4, PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArray4, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods,
+    PyUntypedArray, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
@@ -28,7 +31,12 @@ use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
 /// MERL table shape as numpy sees it: channel, theta_h, theta_d, phi_d.
-const MERL_SHAPE: [usize; 4] = [3, MerlTable::RES_THETA_H, MerlTable::RES_THETA_D, MerlTable::RES_PHI_D];
+const MERL_SHAPE: [usize; 4] = [
+    3,
+    MerlTable::RES_THETA_H,
+    MerlTable::RES_THETA_D,
+    MerlTable::RES_PHI_D,
+];
 
 /// Most fit threads accepted: more is a mistake, not a configuration.
 const MAX_THREADS: usize = 1024;
@@ -88,7 +96,11 @@ fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, 
         kwargs.set_item("dtype", "float64")?;
         py.import("numpy")?
             .call_method("asarray", (obj,), Some(&kwargs))
-            .map_err(|_| PyTypeError::new_err(format!("{name} must be a numpy array of floats (or a nested sequence of numbers)")))?
+            .map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "{name} must be a numpy array of floats (or a nested sequence of numbers)"
+                ))
+            })?
     };
     let u = array.downcast::<PyUntypedArray>()?;
     let kind = u.dtype().kind();
@@ -109,7 +121,10 @@ fn rows<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<[f6
     let ro = a.readonly();
     let v = ro.as_array();
     let (single, view): (bool, ArrayView2<f64>) = match v.ndim() {
-        1 if v.len() == K => (true, v.into_shape_with_order((1, K)).map_err(display_error)?),
+        1 if v.len() == K => (
+            true,
+            v.into_shape_with_order((1, K)).map_err(display_error)?,
+        ),
         2 if v.shape()[1] == K => (false, v.into_dimensionality().map_err(display_error)?),
         _ => {
             return Err(value_error(format!(
@@ -130,7 +145,10 @@ fn rows<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<[f6
             .collect(),
     };
     if let Some(i) = out.iter().position(|r| r.iter().any(|x| !x.is_finite())) {
-        return Err(value_error(format!("{name} row {i} is not finite: {:?}", out[i])));
+        return Err(value_error(format!(
+            "{name} row {i} is not finite: {:?}",
+            out[i]
+        )));
     }
     Ok((out, single))
 }
@@ -155,7 +173,9 @@ fn same_length(a: usize, b: usize, what: &str) -> PyResult<()> {
     if a == b {
         Ok(())
     } else {
-        Err(value_error(format!("{what} have different lengths: {a} and {b}")))
+        Err(value_error(format!(
+            "{what} have different lengths: {a} and {b}"
+        )))
     }
 }
 
@@ -194,7 +214,11 @@ fn par_zip<A: Sync, B: Sync, U: Send>(a: &[A], b: &[B], f: impl Fn(&A, &B) -> U 
 
 // ---------------------------------------------------------------- MERL tables
 
-fn table_to_numpy<'py>(py: Python<'py>, table: &MerlTable, raw: bool) -> PyResult<Bound<'py, PyArray4<f64>>> {
+fn table_to_numpy<'py>(
+    py: Python<'py>,
+    table: &MerlTable,
+    raw: bool,
+) -> PyResult<Bound<'py, PyArray4<f64>>> {
     let data: Vec<f64> = if raw {
         table.raw().to_vec()
     } else {
@@ -229,7 +253,11 @@ fn table_from_numpy(obj: &Bound<'_, PyAny>, raw: bool) -> PyResult<MerlTable> {
                 "table value is NaN or infinite (channel {c}, cell {cell})"
             )));
         }
-        data.push(if raw { *x } else { x / MerlTable::SCALE[i / MerlTable::CELLS] });
+        data.push(if raw {
+            *x
+        } else {
+            x / MerlTable::SCALE[i / MerlTable::CELLS]
+        });
     }
     Ok(MerlTable::from_raw(data))
 }
@@ -241,8 +269,14 @@ fn table_from_numpy(obj: &Bound<'_, PyAny>, raw: bool) -> PyResult<MerlTable> {
 /// when it is not a MERL table.
 #[pyfunction]
 #[pyo3(signature = (path, raw = false))]
-fn read_merl<'py>(py: Python<'py>, path: PathBuf, raw: bool) -> PyResult<Bound<'py, PyArray4<f64>>> {
-    let table = py.allow_threads(|| MerlTable::read(&path)).map_err(load_error)?;
+fn read_merl<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    raw: bool,
+) -> PyResult<Bound<'py, PyArray4<f64>>> {
+    let table = py
+        .allow_threads(|| MerlTable::read(&path))
+        .map_err(load_error)?;
     table_to_numpy(py, &table, raw)
 }
 
@@ -251,9 +285,16 @@ fn read_merl<'py>(py: Python<'py>, path: PathBuf, raw: bool) -> PyResult<Bound<'
 /// cells. Refuses to replace an existing file unless `overwrite`.
 #[pyfunction]
 #[pyo3(signature = (path, table, raw = false, overwrite = false))]
-fn write_merl(py: Python<'_>, path: PathBuf, table: &Bound<'_, PyAny>, raw: bool, overwrite: bool) -> PyResult<()> {
+fn write_merl(
+    py: Python<'_>,
+    path: PathBuf,
+    table: &Bound<'_, PyAny>,
+    raw: bool,
+    overwrite: bool,
+) -> PyResult<()> {
     let table = table_from_numpy(table, raw)?;
-    py.allow_threads(|| table.write(&path, overwrite)).map_err(load_error)
+    py.allow_threads(|| table.write(&path, overwrite))
+        .map_err(load_error)
 }
 
 // ---------------------------------------------------------------- the model
@@ -329,7 +370,11 @@ struct Rotated<'a> {
 
 impl Rotated<'_> {
     fn back(&self, v: Vec3) -> Vec3 {
-        [self.cos * v[0] - self.sin * v[1], self.sin * v[0] + self.cos * v[1], v[2]]
+        [
+            self.cos * v[0] - self.sin * v[1],
+            self.sin * v[0] + self.cos * v[1],
+            v[2],
+        ]
     }
 }
 
@@ -363,7 +408,11 @@ fn export_to(file: &ModelFile, path: &Path, overwrite: bool) -> PyResult<()> {
         _ => Err(value_error(format!(
             "{}: unknown export format (supported: {})",
             path.display(),
-            EXPORT_FORMATS.iter().map(|e| format!(".{e}")).collect::<Vec<_>>().join(", ")
+            EXPORT_FORMATS
+                .iter()
+                .map(|e| format!(".{e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         ))),
     }
 }
@@ -380,7 +429,10 @@ fn factor_array<'py>(
     grid: npf::grid::Grid,
     tables: Vec<&[f32]>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let flat: Vec<f64> = tables.iter().flat_map(|t| t.iter().map(|&v| v as f64)).collect();
+    let flat: Vec<f64> = tables
+        .iter()
+        .flat_map(|t| t.iter().map(|&v| v as f64))
+        .collect();
     let n = tables.len();
     let a = match grid.phi {
         None => numpy::ndarray::Array::from_shape_vec(vec![n, grid.len()], flat),
@@ -415,9 +467,15 @@ impl PyModel {
             let ro = a.readonly();
             let v = ro.as_array();
             if v.ndim() != 2 {
-                return Err(value_error(format!("{name} must be 2-D (rows, n), got shape {:?}", v.shape())));
+                return Err(value_error(format!(
+                    "{name} must be 2-D (rows, n), got shape {:?}",
+                    v.shape()
+                )));
             }
-            let out: Vec<Vec<f64>> = v.axis_iter(NdAxis(0)).map(|r| r.iter().copied().collect()).collect();
+            let out: Vec<Vec<f64>> = v
+                .axis_iter(NdAxis(0))
+                .map(|r| r.iter().copied().collect())
+                .collect();
             if let Some(i) = out.iter().flatten().position(|x| !x.is_finite()) {
                 return Err(value_error(format!("{name} value {i} is not finite")));
             }
@@ -425,10 +483,16 @@ impl PyModel {
         };
         let (f, dd, g) = (table(F, "F")?, table(D, "D")?, table(G, "G")?);
         if d.len() != 1 {
-            return Err(value_error(format!("d must have shape (3,), got {} rows", d.len())));
+            return Err(value_error(format!(
+                "d must have shape (3,), got {} rows",
+                d.len()
+            )));
         }
         if f.len() != 3 {
-            return Err(value_error(format!("F must have 3 rows (R, G, B), got {}", f.len())));
+            return Err(value_error(format!(
+                "F must have 3 rows (R, G, B), got {}",
+                f.len()
+            )));
         }
         let lobes = s.len();
         if dd.len() != lobes || g.len() != lobes {
@@ -441,7 +505,9 @@ impl PyModel {
         }
         let n = f[0].len();
         if !npf::fit::NODES.contains(&n) {
-            return Err(value_error(format!("tables must hold 4 to 90 values, got {n}")));
+            return Err(value_error(format!(
+                "tables must hold 4 to 90 values, got {n}"
+            )));
         }
         for (name, t) in [("F", &f), ("D", &dd), ("G", &g)] {
             if let Some(r) = t.iter().find(|r| r.len() != n) {
@@ -510,7 +576,11 @@ impl PyModel {
     #[getter(F)]
     fn fresnel<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let m = self.model();
-        factor_array(py, m.layout.f, m.fresnel.iter().map(|v| v.as_slice()).collect())
+        factor_array(
+            py,
+            m.layout.f,
+            m.fresnel.iter().map(|v| v.as_slice()).collect(),
+        )
     }
 
     /// Distributions D^m(theta_h), shape (lobes, n_D) (or (lobes, n_theta,
@@ -518,7 +588,11 @@ impl PyModel {
     #[getter(D)]
     fn distribution<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let m = self.model();
-        factor_array(py, m.layout.d, m.lobes.iter().map(|l| l.d.as_slice()).collect())
+        factor_array(
+            py,
+            m.layout.d,
+            m.lobes.iter().map(|l| l.d.as_slice()).collect(),
+        )
     }
 
     /// Shadowing G^m(theta) control points, shape (lobes, n_G) (or (lobes,
@@ -526,7 +600,11 @@ impl PyModel {
     #[getter(G)]
     fn shadowing<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let m = self.model();
-        factor_array(py, m.layout.g, m.lobes.iter().map(|l| l.g.as_slice()).collect())
+        factor_array(
+            py,
+            m.layout.g,
+            m.lobes.iter().map(|l| l.g.as_slice()).collect(),
+        )
     }
 
     /// The factor tables' axes: for "D", "F" and "G" a dict with "name" (the
@@ -536,7 +614,11 @@ impl PyModel {
     fn axes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let l = self.model().layout;
         let out = PyDict::new(py);
-        for (key, name, grid) in [("D", "theta_h", l.d), ("F", "theta_d", l.f), ("G", "theta", l.g)] {
+        for (key, name, grid) in [
+            ("D", "theta_h", l.d),
+            ("F", "theta_d", l.f),
+            ("G", "theta", l.g),
+        ] {
             let axis = PyDict::new(py);
             axis.set_item("name", name)?;
             let theta: Vec<f64> = (0..grid.n_theta()).map(|k| grid.theta.node(k)).collect();
@@ -569,7 +651,12 @@ impl PyModel {
     /// BRDF values (1/sr) per channel, shape (N, 3), for directions `wi`
     /// (towards the light) and `wo` (towards the viewer), each (N, 3); zero
     /// where either is at or below the horizon. The same values as `npf eval`.
-    fn eval(&self, py: Python<'_>, wi: &Bound<'_, PyAny>, wo: &Bound<'_, PyAny>) -> PyResult<PyObject> {
+    fn eval(
+        &self,
+        py: Python<'_>,
+        wi: &Bound<'_, PyAny>,
+        wo: &Bound<'_, PyAny>,
+    ) -> PyResult<PyObject> {
         let (wi, s1) = directions(wi, "wi")?;
         let (wo, s2) = directions(wo, "wo")?;
         same_length(wi.len(), wo.len(), "wi and wo")?;
@@ -584,14 +671,24 @@ impl PyModel {
     /// reused). Returns `(wi, pdf, weight)`: wi (N, 3), pdf (N,) per solid
     /// angle (exactly `pdf(wo, wi)`), weight (N, 3) = f cos(theta_i) / pdf.
     /// Draws below the horizon carry pdf 0 and weight 0.
-    fn sample(&self, py: Python<'_>, wo: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(PyObject, PyObject, PyObject)> {
+    fn sample(
+        &self,
+        py: Python<'_>,
+        wo: &Bound<'_, PyAny>,
+        u: &Bound<'_, PyAny>,
+    ) -> PyResult<(PyObject, PyObject, PyObject)> {
         let (wo, s1) = directions(wo, "wo")?;
         // (N, 3) as is; (N, 2) padded with a NaN in front, which `draw`
         // reads as "pick the component with u1".
         let u: Vec<[f64; 3]> = match rows::<3>(u, "u") {
             Ok((u, _)) => u,
             Err(_) => rows::<2>(u, "u")
-                .map_err(|_| value_error(format!("u must have shape (N, 2) or (N, 3) of finite floats, got {}", describe(u))))?
+                .map_err(|_| {
+                    value_error(format!(
+                        "u must have shape (N, 2) or (N, 3) of finite floats, got {}",
+                        describe(u)
+                    ))
+                })?
                 .0
                 .into_iter()
                 .map(|r| [f64::NAN, r[0], r[1]])
@@ -613,12 +710,21 @@ impl PyModel {
                     .unzip(),
             )
         })?;
-        Ok((rgb_array(py, wi, s1)?, scalar_array(py, pdf, s1), rgb_array(py, weight, s1)?))
+        Ok((
+            rgb_array(py, wi, s1)?,
+            scalar_array(py, pdf, s1),
+            rgb_array(py, weight, s1)?,
+        ))
     }
 
     /// Density (per solid angle of wi) with which `sample` draws wi given
     /// wo, shape (N,); zero where either direction is at or below the horizon.
-    fn pdf(&self, py: Python<'_>, wo: &Bound<'_, PyAny>, wi: &Bound<'_, PyAny>) -> PyResult<PyObject> {
+    fn pdf(
+        &self,
+        py: Python<'_>,
+        wo: &Bound<'_, PyAny>,
+        wi: &Bound<'_, PyAny>,
+    ) -> PyResult<PyObject> {
         let (wo, s1) = directions(wo, "wo")?;
         let (wi, s2) = directions(wi, "wi")?;
         same_length(wi.len(), wo.len(), "wo and wi")?;
@@ -642,7 +748,11 @@ impl PyModel {
                         return [0.0; 3];
                     }
                     let r = w[0].hypot(w[1]);
-                    let (cos, sin) = if r > 0.0 { (w[0] / r, w[1] / r) } else { (1.0, 0.0) };
+                    let (cos, sin) = if r > 0.0 {
+                        (w[0] / r, w[1] / r)
+                    } else {
+                        (1.0, 0.0)
+                    };
                     bsdf::albedo(w[2].min(1.0).acos(), &Rotated { model: m, cos, sin })
                 })
                 .collect()
@@ -663,7 +773,8 @@ impl PyModel {
     /// binary), atomically; refuses to replace a file unless `overwrite`.
     #[pyo3(signature = (path, overwrite = false))]
     fn save(&self, py: Python<'_>, path: PathBuf, overwrite: bool) -> PyResult<()> {
-        py.allow_threads(|| modelfile::write(&path, &self.file, overwrite)).map_err(model_file_error)
+        py.allow_threads(|| modelfile::write(&path, &self.file, overwrite))
+            .map_err(model_file_error)
     }
 
     /// Write the model in the format its extension names: `.json`, `.npfb`
@@ -688,16 +799,30 @@ impl PyModel {
 
     /// One draw (the plugin's scalar path): (wi, pdf, weight) as tuples.
     #[allow(clippy::type_complexity)]
-    fn _sample1(&self, wo: (f64, f64, f64), u: (f64, f64, f64)) -> PyResult<((f64, f64, f64), f64, (f64, f64, f64))> {
+    fn _sample1(
+        &self,
+        wo: (f64, f64, f64),
+        u: (f64, f64, f64),
+    ) -> PyResult<((f64, f64, f64), f64, (f64, f64, f64))> {
         let u = [u.0, u.1, u.2].map(|x| if x.is_finite() { x } else { 0.0 });
         let d = Self::draw(self.bxdf()?, [wo.0, wo.1, wo.2], &u);
-        Ok(((d.wi[0], d.wi[1], d.wi[2]), d.pdf, (d.weight[0], d.weight[1], d.weight[2])))
+        Ok((
+            (d.wi[0], d.wi[1], d.wi[2]),
+            d.pdf,
+            (d.weight[0], d.weight[1], d.weight[2]),
+        ))
     }
 
     /// Seconds the batched kernels alone take on already converted arrays
     /// (eval, sample, pdf; no numpy in or out): what examples/python_bench.py
     /// compares the public calls with, to measure the binding's overhead.
-    fn _kernel_seconds(&self, py: Python<'_>, wi: &Bound<'_, PyAny>, wo: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(f64, f64, f64)> {
+    fn _kernel_seconds(
+        &self,
+        py: Python<'_>,
+        wi: &Bound<'_, PyAny>,
+        wo: &Bound<'_, PyAny>,
+        u: &Bound<'_, PyAny>,
+    ) -> PyResult<(f64, f64, f64)> {
         let (wi, _) = directions(wi, "wi")?;
         let (wo, _) = directions(wo, "wo")?;
         let (u, _) = rows::<3>(u, "u")?;
@@ -712,7 +837,11 @@ impl PyModel {
                 t.elapsed().as_secs_f64()
             };
             let e = time(&|| par_zip(&wi, &wo, |wi, wo| m.eval(*wo, *wi)).len() as f64);
-            let s = time(&|| par_zip(&wo, &u, |wo, u| Self::draw(b, *wo, u).pdf).iter().sum());
+            let s = time(&|| {
+                par_zip(&wo, &u, |wo, u| Self::draw(b, *wo, u).pdf)
+                    .iter()
+                    .sum()
+            });
             let p = time(&|| par_zip(&wo, &wi, |wo, wi| b.pdf(*wo, *wi)).iter().sum());
             Ok((e, s, p))
         })
@@ -724,7 +853,11 @@ impl PyModel {
             "<npf.Model: {} lobe(s), {} parameters, {}>",
             m.lobe_count(),
             m.param_count(),
-            if m.layout.is_isotropic() { "isotropic" } else { "anisotropic" }
+            if m.layout.is_isotropic() {
+                "isotropic"
+            } else {
+                "anisotropic"
+            }
         )
     }
 }
@@ -739,13 +872,19 @@ fn describe(obj: &Bound<'_, PyAny>) -> String {
 /// read, ValueError when it is not a valid model file.
 #[pyfunction]
 fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyModel> {
-    let file = py.allow_threads(|| modelfile::read(&path)).map_err(model_file_error)?;
+    let file = py
+        .allow_threads(|| modelfile::read(&path))
+        .map_err(model_file_error)?;
     Ok(PyModel::new(file))
 }
 
 // ---------------------------------------------------------------- fitting
 
-fn parse_name<T: serde::de::DeserializeOwned>(value: &str, what: &str, choices: &str) -> PyResult<T> {
+fn parse_name<T: serde::de::DeserializeOwned>(
+    value: &str,
+    what: &str,
+    choices: &str,
+) -> PyResult<T> {
     serde_json::from_value(serde_json::Value::String(value.into()))
         .map_err(|_| value_error(format!("unknown {what} {value:?} (choose {choices})")))
 }
@@ -756,12 +895,18 @@ fn fit_samples(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<MeasuredSam
     let samples = if input.is_instance_of::<PyString>() || input.hasattr("__fspath__")? {
         let path: PathBuf = input.extract()?;
         let source = path.display().to_string();
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
         py.allow_threads(|| match ext.as_deref() {
             Some("binary") => MerlTable::read(&path).map(|t| t.samples(&source)),
             // Issue 12 (anisotropic fits) picks its layout here.
             Some("bin") => UtiaTable::read(&path).map(|t| t.samples(&source)),
-            _ => Err(LoadError::invalid(&path, "unknown table format (use a MERL .binary or a UTIA .bin file)")),
+            _ => Err(LoadError::invalid(
+                &path,
+                "unknown table format (use a MERL .binary or a UTIA .bin file)",
+            )),
         })
         .map_err(load_error)?
     } else {
@@ -825,7 +970,11 @@ fn fit(
         model: parse_name::<ModelKind>(model, "model", "factor, independent-g or ggx")?,
         lobes,
         nodes,
-        weighting: parse_name::<Weighting>(weighting, "weighting", "compressive, cosine-l2 or uniform")?,
+        weighting: parse_name::<Weighting>(
+            weighting,
+            "weighting",
+            "compressive, cosine-l2 or uniform",
+        )?,
         epsilon: epsilon.unwrap_or(d.epsilon),
         max_theta: max_theta.unwrap_or(d.max_theta),
         max_theta_h: max_theta_h.unwrap_or(d.max_theta_h),
@@ -840,18 +989,29 @@ fn fit(
         accelerate: accelerate.unwrap_or(d.accelerate),
         threads,
     };
-    for (name, v) in [("epsilon", config.epsilon), ("max_theta", config.max_theta), ("max_theta_h", config.max_theta_h), ("tol", config.tol)] {
+    for (name, v) in [
+        ("epsilon", config.epsilon),
+        ("max_theta", config.max_theta),
+        ("max_theta_h", config.max_theta_h),
+        ("tol", config.tol),
+    ] {
         if !v.is_finite() {
-            return Err(value_error(format!("{name} must be a finite number, got {v}")));
+            return Err(value_error(format!(
+                "{name} must be a finite number, got {v}"
+            )));
         }
     }
     if let Some(cb) = &progress {
         if !cb.bind(py).is_callable() {
-            return Err(PyTypeError::new_err("progress must be a callable (it receives each sweep's report dict)"));
+            return Err(PyTypeError::new_err(
+                "progress must be a callable (it receives each sweep's report dict)",
+            ));
         }
     }
     if threads > MAX_THREADS {
-        return Err(value_error(format!("threads must be 0 (all cores) to {MAX_THREADS}, got {threads}")));
+        return Err(value_error(format!(
+            "threads must be 0 (all cores) to {MAX_THREADS}, got {threads}"
+        )));
     }
     // Checked before reading the input, so a bad option costs nothing.
     config.validate().map_err(display_error)?;
@@ -873,7 +1033,10 @@ fn fit(
         };
         npf::fit::fit(&samples, &config, &mut observer)
     });
-    if let Some(e) = callback_error.into_inner().unwrap_or_else(|p| p.into_inner()) {
+    if let Some(e) = callback_error
+        .into_inner()
+        .unwrap_or_else(|p| p.into_inner())
+    {
         return Err(e);
     }
     let fitted = fitted.map_err(display_error)?;
@@ -900,7 +1063,13 @@ fn _npf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(read_merl, m)?)?;
     m.add_function(wrap_pyfunction!(write_merl, m)?)?;
-    m.add("EXPORT_FORMATS", EXPORT_FORMATS.iter().map(|e| format!(".{e}")).collect::<Vec<_>>())?;
+    m.add(
+        "EXPORT_FORMATS",
+        EXPORT_FORMATS
+            .iter()
+            .map(|e| format!(".{e}"))
+            .collect::<Vec<_>>(),
+    )?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
