@@ -37,5 +37,6 @@ if [ -d python/tests ]; then
     if [ -f pyproject.toml ]; then
         "$venv/bin/python" -m pip install -q --disable-pip-version-check .
     fi
-    NPF_BIN="$PWD/target/release/npf" "$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests
+    # The npf program cargo just built (CARGO_TARGET_DIR, if set, moves it).
+    NPF_BIN="$(cd "${CARGO_TARGET_DIR:-target}" && pwd)/release/npf" "$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests
 fi
