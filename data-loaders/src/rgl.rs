@@ -197,7 +197,11 @@ impl TensorFile {
                 return bad(format!("field {:?} appears twice", f.name));
             }
             if f.shape.len() > MAX_RANK {
-                return bad(format!("field {:?}: rank {} > {MAX_RANK}", f.name, f.shape.len()));
+                return bad(format!(
+                    "field {:?}: rank {} > {MAX_RANK}",
+                    f.name,
+                    f.shape.len()
+                ));
             }
             if let Data::Raw(d, b) = &f.data {
                 if b.len() % d.size() != 0 {
@@ -354,7 +358,10 @@ impl TensorFile {
         if meta.len() > MAX_FILE_BYTES {
             return Err(LoadError::invalid(
                 path,
-                format!("{} bytes, more than the {MAX_FILE_BYTES} a tensor file may have", meta.len()),
+                format!(
+                    "{} bytes, more than the {MAX_FILE_BYTES} a tensor file may have",
+                    meta.len()
+                ),
             ));
         }
         let bytes = std::fs::read(path).map_err(|e| LoadError::io(path, e))?;
@@ -380,7 +387,11 @@ mod tests {
             fields: vec![
                 Field::u8("description", &[5], b"hello".to_vec()),
                 Field::f32("theta_i", &[3], vec![0.0, 0.5, 1.0]),
-                Field::f32("rgb", &[1, 3, 3, 2, 2], (0..36).map(|k| k as f32 * 0.25).collect()),
+                Field::f32(
+                    "rgb",
+                    &[1, 3, 3, 2, 2],
+                    (0..36).map(|k| k as f32 * 0.25).collect(),
+                ),
                 Field::u8("jacobian", &[1], vec![1]),
                 Field {
                     name: "raw".into(),
@@ -425,7 +436,10 @@ mod tests {
         let p = Path::new("x.bsdf");
         let mut b = sample().to_bytes();
         b[12] = 2;
-        assert!(TensorFile::from_bytes(&b, p).unwrap_err().to_string().contains("version"));
+        assert!(TensorFile::from_bytes(&b, p)
+            .unwrap_err()
+            .to_string()
+            .contains("version"));
         // A huge field count with no records.
         let mut h = MAGIC.to_vec();
         h.extend_from_slice(&[1, 0]);
@@ -443,7 +457,10 @@ mod tests {
         // Unknown dtype.
         let mut b = t.to_bytes();
         b[18 + 2 + 1 + 2] = 12;
-        assert!(TensorFile::from_bytes(&b, p).unwrap_err().to_string().contains("dtype"));
+        assert!(TensorFile::from_bytes(&b, p)
+            .unwrap_err()
+            .to_string()
+            .contains("dtype"));
         // A shape that does not match its data is refused by the writer.
         let bad = TensorFile {
             fields: vec![Field::f32("a", &[2], vec![1.0])],
@@ -457,7 +474,10 @@ mod tests {
         let p = dir.path().join("t.bsdf");
         let n = sample().write(&p, false).unwrap();
         assert_eq!(std::fs::metadata(&p).unwrap().len(), n);
-        assert!(matches!(sample().write(&p, false), Err(LoadError::Exists { .. })));
+        assert!(matches!(
+            sample().write(&p, false),
+            Err(LoadError::Exists { .. })
+        ));
         assert_eq!(TensorFile::read(&p).unwrap(), sample());
         assert!(TensorFile::read(dir.path()).is_err());
     }

@@ -45,7 +45,9 @@ pub fn run(args: ExportArgs) -> CliResult {
         ExportError::UnknownFormat(_) | ExportError::Unsupported(_) => {
             CliError::Message(format!("{}: {e}", args.output.display()))
         }
-        ExportError::Option(m) => CliError::Message(format!("--{m}").replace("--theta_i", "--theta-i")),
+        ExportError::Option(m) => {
+            CliError::Message(format!("--{m}").replace("--theta_i", "--theta-i"))
+        }
         other => CliError::Message(format!("{}: {other}", args.model.display())),
     };
     let format = Format::of(&args.output).map_err(flag)?;

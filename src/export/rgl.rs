@@ -210,7 +210,12 @@ pub fn proxy_ndf(model: &Model, n: usize) -> Result<Vec<f64>, ExportError> {
     let bxdf = NpfBxdf::new(model.clone()).map_err(|e| ExportError::Model(e.to_string()))?;
     let p = bxdf.selection_probabilities([0.0, 0.0, 1.0]);
     let d_of = |m: usize, theta: f64| {
-        model.layout.d.stencil(theta, 0.0).apply_f32(&model.lobes[m].d).max(0.0)
+        model
+            .layout
+            .d
+            .stencil(theta, 0.0)
+            .apply_f32(&model.lobes[m].d)
+            .max(0.0)
     };
     // Projected area of each lobe's D by a fine midpoint rule in u
     // (d theta = pi u du, fine near the pole where the peaks are).
@@ -277,13 +282,27 @@ fn dot(a: Vec3, b: Vec3) -> f64 {
 /// Smits' ten basis spectra (white, cyan, magenta, yellow, red, green,
 /// blue), bins of 34 nm over 380-720 nm.
 const SMITS: [[f64; 10]; 7] = [
-    [1.0000, 1.0000, 0.9999, 0.9993, 0.9992, 0.9998, 1.0000, 1.0000, 1.0000, 1.0000],
-    [0.9710, 0.9426, 1.0007, 1.0007, 1.0007, 1.0007, 0.1564, 0.0000, 0.0000, 0.0000],
-    [1.0000, 1.0000, 0.9685, 0.2229, 0.0000, 0.0458, 0.8369, 1.0000, 1.0000, 0.9959],
-    [0.0001, 0.0000, 0.1088, 0.6651, 1.0000, 1.0000, 0.9996, 0.9586, 0.9685, 0.9840],
-    [0.1012, 0.0515, 0.0000, 0.0000, 0.0000, 0.0000, 0.8325, 1.0149, 1.0149, 1.0149],
-    [0.0000, 0.0000, 0.0273, 0.7937, 1.0000, 0.9418, 0.1719, 0.0000, 0.0000, 0.0025],
-    [1.0000, 1.0000, 0.8916, 0.3323, 0.0000, 0.0000, 0.0003, 0.0369, 0.0483, 0.0496],
+    [
+        1.0000, 1.0000, 0.9999, 0.9993, 0.9992, 0.9998, 1.0000, 1.0000, 1.0000, 1.0000,
+    ],
+    [
+        0.9710, 0.9426, 1.0007, 1.0007, 1.0007, 1.0007, 0.1564, 0.0000, 0.0000, 0.0000,
+    ],
+    [
+        1.0000, 1.0000, 0.9685, 0.2229, 0.0000, 0.0458, 0.8369, 1.0000, 1.0000, 0.9959,
+    ],
+    [
+        0.0001, 0.0000, 0.1088, 0.6651, 1.0000, 1.0000, 0.9996, 0.9586, 0.9685, 0.9840,
+    ],
+    [
+        0.1012, 0.0515, 0.0000, 0.0000, 0.0000, 0.0000, 0.8325, 1.0149, 1.0149, 1.0149,
+    ],
+    [
+        0.0000, 0.0000, 0.0273, 0.7937, 1.0000, 0.9418, 0.1719, 0.0000, 0.0000, 0.0025,
+    ],
+    [
+        1.0000, 1.0000, 0.8916, 0.3323, 0.0000, 0.0000, 0.0003, 0.0369, 0.0483, 0.0496,
+    ],
 ];
 
 /// The wavelengths (nm) of the spectral layout: Smits' bin centres.
@@ -324,7 +343,9 @@ pub fn rgb_to_spectrum(rgb: [f64; 3]) -> [f64; 10] {
 /// The tensor file of an isotropic model.
 pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, ExportError> {
     opts.validate()?;
-    model.validate().map_err(|e| ExportError::Model(e.to_string()))?;
+    model
+        .validate()
+        .map_err(|e| ExportError::Model(e.to_string()))?;
     if !model.layout.is_isotropic() {
         return Err(ExportError::Anisotropic);
     }
@@ -424,7 +445,11 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
         }
     );
     let mut fields = vec![
-        Field::u8("description", &[description.len()], description.into_bytes()),
+        Field::u8(
+            "description",
+            &[description.len()],
+            description.into_bytes(),
+        ),
         Field::f32("phi_i", &[1], vec![0.0]),
         Field::f32("theta_i", &[t_n], f32s(&theta_i)),
         Field::f32("ndf", &[2, nd], two_rows(&ndf)),
@@ -433,7 +458,11 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
         Field::f32("luminance", &[1, t_n, n, n], cat(|s| &s.2)),
     ];
     if opts.spectral {
-        fields.push(Field::f32("spectra", &[1, t_n, channels, n, n], cat(|s| &s.1)));
+        fields.push(Field::f32(
+            "spectra",
+            &[1, t_n, channels, n, n],
+            cat(|s| &s.1),
+        ));
         fields.push(Field::f32("wavelengths", &[channels], f32s(&wavelengths())));
     } else {
         fields.push(Field::f32("rgb", &[1, t_n, 3, n, n], cat(|s| &s.1)));
@@ -451,7 +480,10 @@ mod tests {
         let w = Warp2D::new(&[1.0; 12], 3, 4).unwrap();
         for s in [[0.0, 0.0], [0.3, 0.7], [1.0, 1.0], [0.5, 0.25]] {
             let (u, p) = w.sample(s);
-            assert!((u[0] - s[0]).abs() < 1e-12 && (u[1] - s[1]).abs() < 1e-12, "{u:?}");
+            assert!(
+                (u[0] - s[0]).abs() < 1e-12 && (u[1] - s[1]).abs() < 1e-12,
+                "{u:?}"
+            );
             assert!((p - 1.0).abs() < 1e-12);
         }
     }
@@ -461,7 +493,9 @@ mod tests {
         // Density rising along x: the warped mean of x is its mean under
         // the (normalised bilinear) density, 2/3 for f = x.
         let (h, w) = (2, 9);
-        let t: Vec<f64> = (0..h * w).map(|i| (i % w) as f64 / (w - 1) as f64).collect();
+        let t: Vec<f64> = (0..h * w)
+            .map(|i| (i % w) as f64 / (w - 1) as f64)
+            .collect();
         let warp = Warp2D::new(&t, h, w).unwrap();
         let n = 200;
         let mut mean = 0.0;
