@@ -31,6 +31,9 @@ pub struct ExportArgs {
     /// .bsdf: `ndf`/`sigma` nodes along theta (2 to 512).
     #[arg(long, default_value_t = RglOptions::default().ndf)]
     pub ndf: usize,
+    /// .bsdf of an anisotropic model: phi_i nodes over [-180, 180] degrees (2 to 512).
+    #[arg(long, default_value_t = RglOptions::default().phi_i)]
+    pub phi_i: usize,
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
@@ -46,7 +49,7 @@ pub fn run(args: ExportArgs) -> CliResult {
             CliError::Message(format!("{}: {e}", args.output.display()))
         }
         ExportError::Option(m) => {
-            CliError::Message(format!("--{m}").replace("--theta_i", "--theta-i"))
+            CliError::Message(format!("--{m}").replace("--theta_i", "--theta-i").replace("--phi_i", "--phi-i"))
         }
         other => CliError::Message(format!("{}: {other}", args.model.display())),
     };
@@ -57,6 +60,7 @@ pub fn run(args: ExportArgs) -> CliResult {
             samples: args.samples,
             vndf: args.vndf,
             ndf: args.ndf,
+            phi_i: args.phi_i,
             spectral: args.spectral,
         },
     };

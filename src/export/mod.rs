@@ -42,9 +42,6 @@ pub enum ExportError {
     /// A format npf knows but does not write yet.
     #[error("export to .{0} is not supported yet")]
     Unsupported(String),
-    /// The format has no layout for anisotropic models yet.
-    #[error("the .bsdf export supports isotropic models only")]
-    Anisotropic,
     /// An option out of range.
     #[error("{0}")]
     Option(String),
@@ -120,6 +117,7 @@ mod tests {
                 samples: 8,
                 vndf: 8,
                 ndf: 32,
+                phi_i: 5,
                 spectral: false,
             },
         }
@@ -202,6 +200,30 @@ mod tests {
     }
 
     #[test]
+    fn anisotropic_layout_covers_phi_i_over_two_pi() {
+        let model = known_factor_model(Layout::anisotropic(), &[0.3]);
+        let t = rgl::to_tensor_file(&model, &small().rgl).unwrap();
+        let phi = t.get("phi_i").unwrap().as_f32().unwrap();
+        assert_eq!(phi.len(), 5);
+        assert!((phi[0] + std::f32::consts::PI).abs() < 1e-6);
+        assert!((phi[4] - std::f32::consts::PI).abs() < 1e-6);
+        assert_eq!(shape(&t, "rgb"), [5, 5, 3, 8, 8]);
+        assert_eq!(shape(&t, "ndf"), [rgl::ANISO_PHI_ROWS, 32]);
+        // phi_i = -pi and pi are the same direction: equal end slices.
+        let rgb = t.get("rgb").unwrap().as_f32().unwrap();
+        let slice = 5 * 3 * 64;
+        let (first, last) = (&rgb[..slice], &rgb[4 * slice..]);
+        let worst = first
+            .iter()
+            .zip(last)
+            .map(|(a, b)| (a - b).abs() / a.abs().max(1e-3))
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-3, "{worst}");
+        let sigma = t.get("sigma").unwrap().as_f32().unwrap();
+        assert!(sigma.iter().step_by(32).all(|s| (s - 1.0).abs() < 0.01));
+    }
+
+    #[test]
     fn merl_export_is_the_reconstruction() {
         let model = known_factor_model(Layout::isotropic(90), &[0.2]);
         let dir = tempfile::tempdir().unwrap();
@@ -225,9 +247,6 @@ mod tests {
                 "{e}"
             );
         }
-        let aniso = known_factor_model(Layout::anisotropic(), &[0.2]);
-        let e = export(&aniso, &dir.path().join("a.bsdf"), &small(), false).unwrap_err();
-        assert!(matches!(e, ExportError::Anisotropic), "{e}");
         let mut bad = small();
         bad.rgl.samples = 1;
         assert!(matches!(

@@ -4,8 +4,7 @@
 //!
 //! - The proxy NDF is the fit's own D: the lobes' D^m tables, each
 //!   normalised to unit projected area and weighted by the lobe's share of
-//!   the albedo at normal incidence (the sampler's selection
-//!   probabilities), plus a constant 1/pi part weighted by the diffuse
+//!   the albedo at normal incidence (npf's albedo quadrature), plus a constant 1/pi part weighted by the diffuse
 //!   share (at least [`BROAD_FLOOR`]) so the broad part of f keeps sample
 //!   nodes. `ndf` and `sigma` tabulate it, so the renderer's own importance
 //!   sampling (`vndf`) follows the fit's lobes.
@@ -16,7 +15,9 @@
 //!   times |d omega_o / d s|, which makes the renderer's sampling density
 //!   proportional to the luminance of f cos theta_o.
 //! - Version 1.0, `jacobian` = 1 (what pbrt-v4 requires). Isotropic models
-//!   only: `phi_i` = [0].
+//!   have `phi_i` = [0]; anisotropic ones `phi_i` nodes over [-pi, pi]
+//!   (end slices equal, the only range pbrt-v4 accepts) and 2-D `ndf` and
+//!   `sigma` over absolute azimuths.
 //!
 //! RGB-to-spectrum upsampling (`--spectral`): Smits (1999), "An RGB to
 //! Spectrum Conversion for Reflectances": each RGB triple is the white
@@ -25,9 +26,8 @@
 //! top excess; ten bins over 380-720 nm, written at the bin centres. It is
 //! non-negative for non-negative RGB and linear in the RGB scale.
 
-use crate::bsdf::NpfBxdf;
 use crate::model::Model;
-use npf_data_loaders::geometry::{spherical, Vec3};
+use npf_data_loaders::geometry::{spherical, Angles, Vec3};
 use npf_data_loaders::rgl::{Field, TensorFile};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -40,6 +40,8 @@ pub const BROAD_FLOOR: f64 = 0.05;
 pub const MAX_THETA_I_DEG: f64 = 88.0;
 /// Largest resolution accepted for any table axis.
 pub const MAX_RES: usize = 512;
+/// Azimuth rows of the `ndf` and `sigma` tables of anisotropic models.
+pub const ANISO_PHI_ROWS: usize = 49;
 /// Rec. 709 luminance weights.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -54,6 +56,9 @@ pub struct RglOptions {
     pub vndf: usize,
     /// `ndf` and `sigma` nodes along theta.
     pub ndf: usize,
+    /// Nodes of phi_i over [-pi, pi] for anisotropic models (isotropic
+    /// ones have the single node 0).
+    pub phi_i: usize,
     /// Write `spectra` + `wavelengths` (Smits upsampling) instead of `rgb`.
     pub spectral: bool,
 }
@@ -65,6 +70,7 @@ impl Default for RglOptions {
             samples: 48,
             vndf: 48,
             ndf: 128,
+            phi_i: 13,
             spectral: false,
         }
     }
@@ -78,6 +84,7 @@ impl RglOptions {
             ("samples", self.samples),
             ("vndf", self.vndf),
             ("ndf", self.ndf),
+            ("phi_i", self.phi_i),
         ] {
             if !(2..=MAX_RES).contains(&n) {
                 return Err(ExportError::Option(format!(
@@ -98,15 +105,6 @@ fn u2theta(u: f64) -> f64 {
 #[inline]
 fn theta2u(theta: f64) -> f64 {
     (theta / FRAC_PI_2).max(0.0).sqrt()
-}
-
-/// Linear interpolation of a table on nodes k / (n - 1) of [0, 1].
-fn lerp_table(t: &[f64], x: f64) -> f64 {
-    let n = t.len();
-    let x = x.clamp(0.0, 1.0) * (n - 1) as f64;
-    let k = (x.floor() as usize).min(n - 2);
-    let w = x - k as f64;
-    t[k] * (1.0 - w) + t[k + 1] * w
 }
 
 /// The piecewise-bilinear 2-D warp of Mitsuba's `Marginal2D<…, true>` /
@@ -204,75 +202,143 @@ impl Warp2D {
     }
 }
 
-/// The proxy NDF of a model tabulated on `n` nodes uniform in u_theta,
-/// with unit projected area (integral of D cos theta_m = 1).
-pub fn proxy_ndf(model: &Model, n: usize) -> Result<Vec<f64>, ExportError> {
-    let bxdf = NpfBxdf::new(model.clone()).map_err(|e| ExportError::Model(e.to_string()))?;
-    let p = bxdf.selection_probabilities([0.0, 0.0, 1.0]);
-    let d_of = |m: usize, theta: f64| {
-        model
-            .layout
-            .d
-            .stencil(theta, 0.0)
-            .apply_f32(&model.lobes[m].d)
-            .max(0.0)
-    };
-    // Projected area of each lobe's D by a fine midpoint rule in u
-    // (d theta = pi u du, fine near the pole where the peaks are).
-    const Q: usize = 4096;
-    let area = |m: usize| -> f64 {
-        (0..Q)
-            .map(|a| {
-                let u = (a as f64 + 0.5) / Q as f64;
-                let t = u2theta(u);
-                d_of(m, t) * t.cos() * t.sin() * 2.0 * PI * PI * u / Q as f64
-            })
-            .sum()
-    };
-    let mut weights: Vec<(usize, f64, f64)> = Vec::new();
-    for m in 0..model.lobes.len() {
-        let a = area(m);
-        if a > 0.0 && a.is_finite() && p[1 + m] > 0.0 {
-            weights.push((m, p[1 + m], a));
-        }
-    }
-    let broad = p[0].max(BROAD_FLOOR);
-    let total: f64 = broad + weights.iter().map(|w| w.1).sum::<f64>();
-    Ok((0..n)
-        .map(|k| {
-            let t = u2theta(k as f64 / (n - 1) as f64);
-            let lobes: f64 = weights.iter().map(|&(m, w, a)| w / a * d_of(m, t)).sum();
-            (lobes + broad / PI) / total
-        })
-        .collect())
+/// A table on the unit square (H x W, nodes j / (H - 1), k / (W - 1)),
+/// bilinear, x clamped and y wrapped into [0, 1) as the readers do.
+struct Table2 {
+    h: usize,
+    w: usize,
+    v: Vec<f64>,
 }
 
-/// Projected area sigma(theta_i) = integral of D(m) max(0, m . wi) d omega_m of
-/// an isotropic NDF tabulated on u_theta nodes (linear in between), at
-/// `n` theta_i nodes uniform in u_theta.
-fn projected_area(ndf: &[f64], n: usize) -> Vec<f64> {
-    const QU: usize = 1024;
-    const QPHI: usize = 256;
-    (0..n)
+impl Table2 {
+    fn at(&self, x: f64, y: f64) -> f64 {
+        let (h, w) = (self.h, self.w);
+        let x = x.clamp(0.0, 1.0) * (w - 1) as f64;
+        let y = (y - y.floor()).clamp(0.0, 1.0) * (h - 1) as f64;
+        let (k, j) = (
+            (x.floor() as usize).min(w - 2),
+            (y.floor() as usize).min(h - 2),
+        );
+        let (tx, ty) = (x - k as f64, y - j as f64);
+        let row = |j: usize| self.v[j * w + k] * (1.0 - tx) + self.v[j * w + k + 1] * tx;
+        row(j) * (1.0 - ty) + row(j + 1) * ty
+    }
+}
+
+/// phi of a unit-square coordinate (phi = (2 u - 1) pi).
+#[inline]
+fn u2phi(u: f64) -> f64 {
+    (2.0 * u - 1.0) * PI
+}
+
+#[inline]
+fn phi2u(phi: f64) -> f64 {
+    (phi + PI) / (2.0 * PI)
+}
+
+/// Weights of the proxy's parts: the components' shares of the
+/// directional albedo (luminance) at normal incidence, by npf's albedo
+/// quadrature; the diffuse share at least [`BROAD_FLOOR`].
+fn component_weights(model: &Model) -> (f64, Vec<f64>) {
+    let lum = |v: [f64; 3]| (0..3).map(|c| LUMINANCE[c] * v[c]).sum::<f64>();
+    let lobes = crate::bsdf::half_vector_quadrature(0.0, 64, 128, model.lobes.len(), |wo, wi, w, acc| {
+        model.lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
+            acc[m] += lum(t).max(0.0) * w;
+        });
+    });
+    let diffuse = lum(model.diffuse.map(f64::from)) * PI;
+    let total = diffuse + lobes.iter().sum::<f64>();
+    if !(total > 0.0 && total.is_finite()) {
+        return (1.0, vec![0.0; lobes.len()]);
+    }
+    let lobes: Vec<f64> = lobes.iter().map(|a| (a / total).max(0.0)).collect();
+    ((diffuse / total).max(BROAD_FLOOR), lobes)
+}
+
+/// The proxy NDF of a model on an (h x w) table: rows phi_m = u2phi(j / (h
+/// - 1)), columns u_theta = k / (w - 1); unit projected area (integral of
+/// D cos theta_m = 1). One row's worth of work for an isotropic model.
+fn proxy_ndf(model: &Model, h: usize, w: usize) -> Table2 {
+    let iso = model.layout.is_isotropic();
+    let d_of = |m: usize, theta: f64, phi: f64| {
+        model.layout.d.stencil(theta, phi).apply_f32(&model.lobes[m].d).max(0.0)
+    };
+    // Projected area of each lobe's D by a midpoint rule in u (d theta =
+    // pi u du, fine near the pole where the peaks are) and phi.
+    let (qu, qphi) = if iso { (4096, 1) } else { (1024, 192) };
+    let area = |m: usize| -> f64 {
+        let mut s = 0.0;
+        for a in 0..qu {
+            let u = (a as f64 + 0.5) / qu as f64;
+            let t = u2theta(u);
+            let ring: f64 = (0..qphi)
+                .map(|b| d_of(m, t, (b as f64 + 0.5) / qphi as f64 * 2.0 * PI))
+                .sum::<f64>()
+                / qphi as f64;
+            s += ring * t.cos() * t.sin() * 2.0 * PI * PI * u / qu as f64;
+        }
+        s
+    };
+    let (broad, shares) = component_weights(model);
+    let parts: Vec<(usize, f64)> = (0..model.lobes.len())
+        .filter(|&m| shares[m] > 0.0)
+        .filter_map(|m| {
+            let a = area(m);
+            (a > 0.0 && a.is_finite()).then(|| (m, shares[m] / a))
+        })
+        .collect();
+    let total = broad + parts.iter().map(|&(m, _)| shares[m]).sum::<f64>();
+    let value = |theta: f64, phi: f64| {
+        let lobes: f64 = parts.iter().map(|&(m, wt)| wt * d_of(m, theta, phi)).sum();
+        (lobes + broad / PI) / total
+    };
+    let mut v = vec![0.0; h * w];
+    for j in 0..h {
+        for k in 0..w {
+            let t = u2theta(k as f64 / (w - 1) as f64);
+            v[j * w + k] = if iso && j > 0 {
+                v[k]
+            } else {
+                value(t, u2phi(j as f64 / (h - 1) as f64))
+            };
+        }
+    }
+    Table2 { h, w, v }
+}
+
+/// Projected area sigma(wi) = integral of D(m) max(0, m . wi) d omega_m of
+/// the proxy NDF (its table's interpolant) on an (h x w) table over
+/// (phi_i, u_theta(theta_i)), like `ndf`. One row for an isotropic NDF.
+fn projected_area(ndf: &Table2, h: usize, w: usize, iso: bool) -> Table2 {
+    let (qu, qphi) = if iso { (1024, 256) } else { (256, 128) };
+    let rows = if iso { 1 } else { h };
+    let v: Vec<f64> = (0..rows * w)
         .into_par_iter()
-        .map(|k| {
-            let theta_i = u2theta(k as f64 / (n - 1) as f64);
-            let wi = spherical(theta_i, 0.0);
+        .map(|idx| {
+            let (j, k) = (idx / w, idx % w);
+            let theta_i = u2theta(k as f64 / (w - 1) as f64);
+            let phi_i = u2phi(j as f64 / (h - 1) as f64);
+            let wi = spherical(theta_i, phi_i);
             let mut s = 0.0;
-            for a in 0..QU {
-                let u = (a as f64 + 0.5) / QU as f64;
+            for a in 0..qu {
+                let u = (a as f64 + 0.5) / qu as f64;
                 let t = u2theta(u);
-                let d = lerp_table(ndf, u);
                 let mut ring = 0.0;
-                for b in 0..QPHI {
-                    let m = spherical(t, (b as f64 + 0.5) / QPHI as f64 * 2.0 * PI);
-                    ring += (m[0] * wi[0] + m[1] * wi[1] + m[2] * wi[2]).max(0.0);
+                for b in 0..qphi {
+                    let phi = (b as f64 + 0.5) / qphi as f64 * 2.0 * PI - PI;
+                    let m = spherical(t, phi);
+                    let c = dot(m, wi);
+                    if c > 0.0 {
+                        ring += c * ndf.at(u, phi2u(phi));
+                    }
                 }
-                s += d * ring / QPHI as f64 * 2.0 * PI * t.sin() * PI * u / QU as f64;
+                s += ring / qphi as f64 * 2.0 * PI * t.sin() * PI * u / qu as f64;
             }
             s
         })
-        .collect()
+        .collect();
+    let v = if iso { v.repeat(h) } else { v };
+    Table2 { h, w, v }
 }
 
 fn dot(a: Vec3, b: Vec3) -> f64 {
@@ -340,39 +406,51 @@ pub fn rgb_to_spectrum(rgb: [f64; 3]) -> [f64; 10] {
     std::array::from_fn(|l| terms.iter().map(|&(k, a)| a * SMITS[k][l]).sum())
 }
 
-/// The tensor file of an isotropic model.
+/// The tensor file of a model: isotropic models with phi_i = [0],
+/// anisotropic ones with `phi_i` nodes over [-pi, pi].
 pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, ExportError> {
     opts.validate()?;
-    model
-        .validate()
-        .map_err(|e| ExportError::Model(e.to_string()))?;
-    if !model.layout.is_isotropic() {
-        return Err(ExportError::Anisotropic);
-    }
+    model.validate().map_err(|e| ExportError::Model(e.to_string()))?;
+    let iso = model.layout.is_isotropic();
     let (t_n, n, nv, nd) = (opts.theta_i, opts.samples, opts.vndf, opts.ndf);
-    let ndf = proxy_ndf(model, nd)?;
-    let sigma = projected_area(&ndf, nd);
+    // The azimuth rows of ndf/sigma: constant for an isotropic model.
+    let hd = if iso { 2 } else { ANISO_PHI_ROWS };
+    let ndf = proxy_ndf(model, hd, nd);
+    let sigma = projected_area(&ndf, hd, nd, iso);
     let u_max = theta2u(MAX_THETA_I_DEG.to_radians());
     let theta_i: Vec<f64> = (0..t_n)
         .map(|t| u2theta(u_max * t as f64 / (t_n - 1) as f64))
         .collect();
+    let phi_i: Vec<f64> = if iso {
+        vec![0.0]
+    } else {
+        (0..opts.phi_i)
+            .map(|p| u2phi(p as f64 / (opts.phi_i - 1) as f64))
+            .collect()
+    };
     let channels = if opts.spectral { 10 } else { 3 };
 
-    // Per theta_i node: vndf slice, values (C x N x N), luminance (N x N).
+    // Per (phi_i, theta_i) node: vndf slice, values (C x N x N), luminance (N x N).
     type Slice = (Vec<f64>, Vec<f64>, Vec<f64>);
-    let slices: Vec<Slice> = theta_i
+    let nodes: Vec<(f64, f64)> = phi_i
+        .iter()
+        .flat_map(|&p| theta_i.iter().map(move |&t| (p, t)))
+        .collect();
+    let slices: Vec<Slice> = nodes
         .par_iter()
-        .map(|&ti| {
-            let wi = spherical(ti, 0.0);
-            let sig = lerp_table(&sigma, theta2u(ti));
+        .map(|&(pi_, ti)| {
+            let wi = spherical(ti, pi_);
+            // Isotropic files give phi_m relative to phi_i, anisotropic ones absolute.
+            let phi_offset = if iso { pi_ } else { 0.0 };
+            let sig = sigma.at(theta2u(ti), phi2u(pi_));
             let mut vndf = vec![0.0; nv * nv];
             for j in 0..nv {
-                let phi = (2.0 * j as f64 / (nv - 1) as f64 - 1.0) * PI;
+                let phi = u2phi(j as f64 / (nv - 1) as f64) + phi_offset;
                 for k in 0..nv {
                     let u = k as f64 / (nv - 1) as f64;
                     let tm = u2theta(u);
                     let m = spherical(tm, phi);
-                    vndf[j * nv + k] = dot(wi, m).max(0.0) * lerp_table(&ndf, u) / sig
+                    vndf[j * nv + k] = dot(wi, m).max(0.0) * ndf.at(u, phi2u(phi)) / sig
                         * 2.0
                         * PI
                         * PI
@@ -394,7 +472,8 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
                     let s = [k as f64 / (n - 1) as f64, j as f64 / (n - 1) as f64];
                     let (um, pv) = warp.sample(s);
                     let tm = u2theta(um[0]);
-                    let m = spherical(tm, (2.0 * um[1] - 1.0) * PI);
+                    let phi_m = u2phi(um[1]) + phi_offset;
+                    let m = spherical(tm, phi_m);
                     let wm = dot(wi, m);
                     let wo = [
                         2.0 * wm * m[0] - wi[0],
@@ -405,7 +484,7 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
                         continue;
                     }
                     let f = model.eval(wo, wi);
-                    let jac = lerp_table(&ndf, um[0]) / (4.0 * sig);
+                    let jac = ndf.at(um[0], phi2u(phi_m)) / (4.0 * sig);
                     let v = f.map(|x| x * wo[2] / jac);
                     let y: f64 = (0..3).map(|c| LUMINANCE[c] * f[c] * wo[2]).sum();
                     let dwds = 4.0 * wm * (2.0 * PI * PI * um[0] * tm.sin()).max(1e-6) / pv;
@@ -433,39 +512,32 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
     let cat = |pick: fn(&Slice) -> &Vec<f64>| -> Vec<f32> {
         slices.iter().flat_map(|s| f32s(pick(s))).collect()
     };
-    let two_rows = |t: &[f64]| -> Vec<f32> { f32s(t).repeat(2) };
     let description = format!(
-        "npf export: non-parametric factor model, {} lobe(s), isotropic; proxy NDF = the fit's D; \
+        "npf export: non-parametric factor model, {} lobe(s), {}; proxy NDF = the fit's D; \
          values from Model::eval{}",
         model.lobes.len(),
+        if iso { "isotropic" } else { "anisotropic" },
         if opts.spectral {
             "; spectra by Smits (1999) RGB upsampling"
         } else {
             ""
         }
     );
+    let p_n = phi_i.len();
     let mut fields = vec![
-        Field::u8(
-            "description",
-            &[description.len()],
-            description.into_bytes(),
-        ),
-        Field::f32("phi_i", &[1], vec![0.0]),
+        Field::u8("description", &[description.len()], description.into_bytes()),
+        Field::f32("phi_i", &[p_n], f32s(&phi_i)),
         Field::f32("theta_i", &[t_n], f32s(&theta_i)),
-        Field::f32("ndf", &[2, nd], two_rows(&ndf)),
-        Field::f32("sigma", &[2, nd], two_rows(&sigma)),
-        Field::f32("vndf", &[1, t_n, nv, nv], cat(|s| &s.0)),
-        Field::f32("luminance", &[1, t_n, n, n], cat(|s| &s.2)),
+        Field::f32("ndf", &[hd, nd], f32s(&ndf.v)),
+        Field::f32("sigma", &[hd, nd], f32s(&sigma.v)),
+        Field::f32("vndf", &[p_n, t_n, nv, nv], cat(|s| &s.0)),
+        Field::f32("luminance", &[p_n, t_n, n, n], cat(|s| &s.2)),
     ];
     if opts.spectral {
-        fields.push(Field::f32(
-            "spectra",
-            &[1, t_n, channels, n, n],
-            cat(|s| &s.1),
-        ));
+        fields.push(Field::f32("spectra", &[p_n, t_n, channels, n, n], cat(|s| &s.1)));
         fields.push(Field::f32("wavelengths", &[channels], f32s(&wavelengths())));
     } else {
-        fields.push(Field::f32("rgb", &[1, t_n, 3, n, n], cat(|s| &s.1)));
+        fields.push(Field::f32("rgb", &[p_n, t_n, 3, n, n], cat(|s| &s.1)));
     }
     fields.push(Field::u8("jacobian", &[1], vec![1]));
     Ok(TensorFile { fields })
