@@ -34,6 +34,9 @@ pub struct ExportArgs {
     /// .bsdf of an anisotropic model: phi_i nodes over [-180, 180] degrees (2 to 512).
     #[arg(long, default_value_t = RglOptions::default().phi_i)]
     pub phi_i: usize,
+    /// .bsdf: least share of the proxy NDF's constant part, in [0, 1) (the fraction of sample nodes kept for the broad part of the BRDF).
+    #[arg(long, default_value_t = RglOptions::default().broad)]
+    pub broad: f64,
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
@@ -48,9 +51,11 @@ pub fn run(args: ExportArgs) -> CliResult {
         ExportError::UnknownFormat(_) | ExportError::Unsupported(_) => {
             CliError::Message(format!("{}: {e}", args.output.display()))
         }
-        ExportError::Option(m) => {
-            CliError::Message(format!("--{m}").replace("--theta_i", "--theta-i").replace("--phi_i", "--phi-i"))
-        }
+        ExportError::Option(m) => CliError::Message(
+            format!("--{m}")
+                .replace("--theta_i", "--theta-i")
+                .replace("--phi_i", "--phi-i"),
+        ),
         other => CliError::Message(format!("{}: {other}", args.model.display())),
     };
     let format = Format::of(&args.output).map_err(flag)?;
@@ -61,6 +66,7 @@ pub fn run(args: ExportArgs) -> CliResult {
             vndf: args.vndf,
             ndf: args.ndf,
             phi_i: args.phi_i,
+            broad: args.broad,
             spectral: args.spectral,
         },
     };

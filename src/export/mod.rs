@@ -118,6 +118,7 @@ mod tests {
                 vndf: 8,
                 ndf: 32,
                 phi_i: 5,
+                broad: rgl::BROAD_FLOOR,
                 spectral: false,
             },
         }

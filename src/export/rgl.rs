@@ -5,8 +5,9 @@
 //! - The proxy NDF is the fit's own D: the lobes' D^m tables, each
 //!   normalised to unit projected area and weighted by the lobe's share of
 //!   the albedo at normal incidence (npf's albedo quadrature), plus a constant 1/pi part weighted by the diffuse
-//!   share (at least [`BROAD_FLOOR`]) so the broad part of f keeps sample
-//!   nodes. `ndf` and `sigma` tabulate it, so the renderer's own importance
+//!   share, at least [`RglOptions::broad`] (default [`BROAD_FLOOR`]), so
+//!   the broad part of f keeps sample nodes; each lobe also enters widened
+//!   ([`LOBE_SPREAD`]), so its flanks keep nodes. `ndf` and `sigma` tabulate it, so the renderer's own importance
 //!   sampling (`vndf`) follows the fit's lobes.
 //! - `rgb` (or `spectra`) holds f cos theta_o from [`Model::eval`] at every
 //!   node of the warped sample grid, divided by the jacobian
@@ -34,12 +35,16 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use super::ExportError;
 
-/// Least weight of the constant (diffuse-like) part of the proxy NDF.
-pub const BROAD_FLOOR: f64 = 0.05;
+/// Default least weight of the constant (diffuse-like) part of the proxy
+/// NDF ([`RglOptions::broad`]).
+pub const BROAD_FLOOR: f64 = 0.25;
 /// Largest theta_i node, degrees (the format avoids exactly 90).
 pub const MAX_THETA_I_DEG: f64 = 88.0;
 /// Largest resolution accepted for any table axis.
 pub const MAX_RES: usize = 512;
+/// How each lobe's share of the proxy NDF is spread: (widening factor
+/// rho, fraction) pairs; the lobe D^m(theta) and D^m(theta / rho).
+pub const LOBE_SPREAD: [(f64, f64); 3] = [(1.0, 0.6), (3.0, 0.25), (9.0, 0.15)];
 /// Azimuth rows of the `ndf` and `sigma` tables of anisotropic models.
 pub const ANISO_PHI_ROWS: usize = 49;
 /// Rec. 709 luminance weights.
@@ -59,6 +64,9 @@ pub struct RglOptions {
     /// Nodes of phi_i over [-pi, pi] for anisotropic models (isotropic
     /// ones have the single node 0).
     pub phi_i: usize,
+    /// Least share of the proxy NDF's constant part, in [0, 1): the
+    /// fraction of the sample nodes kept for the broad part of f.
+    pub broad: f64,
     /// Write `spectra` + `wavelengths` (Smits upsampling) instead of `rgb`.
     pub spectral: bool,
 }
@@ -66,11 +74,12 @@ pub struct RglOptions {
 impl Default for RglOptions {
     fn default() -> Self {
         RglOptions {
-            theta_i: 32,
-            samples: 48,
+            theta_i: 48,
+            samples: 64,
             vndf: 48,
             ndf: 128,
             phi_i: 13,
+            broad: BROAD_FLOOR,
             spectral: false,
         }
     }
@@ -91,6 +100,12 @@ impl RglOptions {
                     "{name} resolution {n}: must be between 2 and {MAX_RES}"
                 )));
             }
+        }
+        if !(self.broad >= 0.0 && self.broad < 1.0) {
+            return Err(ExportError::Option(format!(
+                "broad {}: must be in [0, 1)",
+                self.broad
+            )));
         }
         Ok(())
     }
@@ -238,58 +253,86 @@ fn phi2u(phi: f64) -> f64 {
 
 /// Weights of the proxy's parts: the components' shares of the
 /// directional albedo (luminance) at normal incidence, by npf's albedo
-/// quadrature; the diffuse share at least [`BROAD_FLOOR`].
-fn component_weights(model: &Model) -> (f64, Vec<f64>) {
+/// quadrature; the diffuse share at least `broad`.
+fn component_weights(model: &Model, broad: f64) -> (f64, Vec<f64>) {
     let lum = |v: [f64; 3]| (0..3).map(|c| LUMINANCE[c] * v[c]).sum::<f64>();
-    let lobes = crate::bsdf::half_vector_quadrature(0.0, 64, 128, model.lobes.len(), |wo, wi, w, acc| {
-        model.lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
-            acc[m] += lum(t).max(0.0) * w;
+    let lobes =
+        crate::bsdf::half_vector_quadrature(0.0, 64, 128, model.lobes.len(), |wo, wi, w, acc| {
+            model.lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
+                acc[m] += lum(t).max(0.0) * w;
+            });
         });
-    });
     let diffuse = lum(model.diffuse.map(f64::from)) * PI;
     let total = diffuse + lobes.iter().sum::<f64>();
     if !(total > 0.0 && total.is_finite()) {
         return (1.0, vec![0.0; lobes.len()]);
     }
     let lobes: Vec<f64> = lobes.iter().map(|a| (a / total).max(0.0)).collect();
-    ((diffuse / total).max(BROAD_FLOOR), lobes)
+    // Lobe shares scaled so that the constant part gets at least `broad`.
+    let d = diffuse / total;
+    if d >= broad {
+        (d, lobes)
+    } else {
+        let k = (1.0 - broad) / (1.0 - d).max(1e-300);
+        (broad, lobes.iter().map(|a| a * k).collect())
+    }
 }
 
 /// The proxy NDF of a model on an (h x w) table: rows phi_m = u2phi(j / (h
 /// - 1)), columns u_theta = k / (w - 1); unit projected area (integral of
 /// D cos theta_m = 1). One row's worth of work for an isotropic model.
-fn proxy_ndf(model: &Model, h: usize, w: usize) -> Table2 {
+fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
     let iso = model.layout.is_isotropic();
     let d_of = |m: usize, theta: f64, phi: f64| {
-        model.layout.d.stencil(theta, phi).apply_f32(&model.lobes[m].d).max(0.0)
+        model
+            .layout
+            .d
+            .stencil(theta, phi)
+            .apply_f32(&model.lobes[m].d)
+            .max(0.0)
     };
     // Projected area of each lobe's D by a midpoint rule in u (d theta =
     // pi u du, fine near the pole where the peaks are) and phi.
     let (qu, qphi) = if iso { (4096, 1) } else { (1024, 192) };
-    let area = |m: usize| -> f64 {
+    let area = |m: usize, rho: f64| -> f64 {
         let mut s = 0.0;
         for a in 0..qu {
             let u = (a as f64 + 0.5) / qu as f64;
             let t = u2theta(u);
             let ring: f64 = (0..qphi)
-                .map(|b| d_of(m, t, (b as f64 + 0.5) / qphi as f64 * 2.0 * PI))
+                .map(|b| d_of(m, t / rho, (b as f64 + 0.5) / qphi as f64 * 2.0 * PI))
                 .sum::<f64>()
                 / qphi as f64;
             s += ring * t.cos() * t.sin() * 2.0 * PI * PI * u / qu as f64;
         }
         s
     };
-    let (broad, shares) = component_weights(model);
-    let parts: Vec<(usize, f64)> = (0..model.lobes.len())
-        .filter(|&m| shares[m] > 0.0)
-        .filter_map(|m| {
-            let a = area(m);
-            (a > 0.0 && a.is_finite()).then(|| (m, shares[m] / a))
-        })
-        .collect();
-    let total = broad + parts.iter().map(|&(m, _)| shares[m]).sum::<f64>();
+    let (broad, shares) = component_weights(model, broad);
+    // Each lobe enters as itself and widened (D^m(theta / rho)), so the
+    // flanks of a sharp lobe, where f falls by orders of magnitude, keep
+    // sample nodes too.
+    let mut parts: Vec<(usize, f64, f64)> = Vec::new();
+    for m in 0..model.lobes.len() {
+        if !(shares[m] > 0.0) {
+            continue;
+        }
+        for (rho, frac) in LOBE_SPREAD {
+            let a = area(m, rho);
+            if a > 0.0 && a.is_finite() {
+                parts.push((m, rho, shares[m] * frac / a));
+            }
+        }
+    }
+    let total = broad
+        + parts
+            .iter()
+            .map(|&(m, rho, wt)| wt * area(m, rho))
+            .sum::<f64>();
     let value = |theta: f64, phi: f64| {
-        let lobes: f64 = parts.iter().map(|&(m, wt)| wt * d_of(m, theta, phi)).sum();
+        let lobes: f64 = parts
+            .iter()
+            .map(|&(m, rho, wt)| wt * d_of(m, theta / rho, phi))
+            .sum();
         (lobes + broad / PI) / total
     };
     let mut v = vec![0.0; h * w];
@@ -410,12 +453,14 @@ pub fn rgb_to_spectrum(rgb: [f64; 3]) -> [f64; 10] {
 /// anisotropic ones with `phi_i` nodes over [-pi, pi].
 pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, ExportError> {
     opts.validate()?;
-    model.validate().map_err(|e| ExportError::Model(e.to_string()))?;
+    model
+        .validate()
+        .map_err(|e| ExportError::Model(e.to_string()))?;
     let iso = model.layout.is_isotropic();
     let (t_n, n, nv, nd) = (opts.theta_i, opts.samples, opts.vndf, opts.ndf);
     // The azimuth rows of ndf/sigma: constant for an isotropic model.
     let hd = if iso { 2 } else { ANISO_PHI_ROWS };
-    let ndf = proxy_ndf(model, hd, nd);
+    let ndf = proxy_ndf(model, hd, nd, opts.broad);
     let sigma = projected_area(&ndf, hd, nd, iso);
     let u_max = theta2u(MAX_THETA_I_DEG.to_radians());
     let theta_i: Vec<f64> = (0..t_n)
@@ -525,7 +570,11 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
     );
     let p_n = phi_i.len();
     let mut fields = vec![
-        Field::u8("description", &[description.len()], description.into_bytes()),
+        Field::u8(
+            "description",
+            &[description.len()],
+            description.into_bytes(),
+        ),
         Field::f32("phi_i", &[p_n], f32s(&phi_i)),
         Field::f32("theta_i", &[t_n], f32s(&theta_i)),
         Field::f32("ndf", &[hd, nd], f32s(&ndf.v)),
@@ -534,7 +583,11 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
         Field::f32("luminance", &[p_n, t_n, n, n], cat(|s| &s.2)),
     ];
     if opts.spectral {
-        fields.push(Field::f32("spectra", &[p_n, t_n, channels, n, n], cat(|s| &s.1)));
+        fields.push(Field::f32(
+            "spectra",
+            &[p_n, t_n, channels, n, n],
+            cat(|s| &s.1),
+        ));
         fields.push(Field::f32("wavelengths", &[channels], f32s(&wavelengths())));
     } else {
         fields.push(Field::f32("rgb", &[p_n, t_n, 3, n, n], cat(|s| &s.1)));
