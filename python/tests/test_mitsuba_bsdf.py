@@ -109,10 +109,13 @@ def material(request, tmp_path_factory):
     else:
         model, table = d / "aniso.json", None
         anisotropic_model(model)
+    # The anisotropic file with fewer theta_i and sample nodes than the
+    # defaults (13 x 48 slices of 64 x 64), to keep the test fast.
+    args = ["--theta-i", 32, "--samples", 48] if request.param == "anisotropic" else []
     bsdf = d / "m.bsdf"
-    out = npf("export", model, "-o", bsdf)
+    out = npf("export", model, "-o", bsdf, *args)
     assert bsdf.stat().st_size > 0 and "bytes" in out.stderr
-    return {"dir": d, "model": model, "table": table, "bsdf": bsdf, "kind": request.param}
+    return {"dir": d, "model": model, "table": table, "bsdf": bsdf, "kind": request.param, "args": args}
 
 
 def sph(theta, phi):
@@ -272,7 +275,7 @@ def test_sphere_render_matches_npf(material):
 
 def test_spectral_layout_loads_and_follows_rgb(material):
     spectral = material["dir"] / "m-spectral.bsdf"
-    npf("export", material["model"], "-o", spectral, "--spectral")
+    npf("export", material["model"], "-o", spectral, "--spectral", *material["args"])
     mi.set_variant("scalar_spectral")
     b = mi.load_dict({"type": "measured", "filename": str(spectral)})
     ctx = mi.BSDFContext()
