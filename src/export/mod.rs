@@ -163,7 +163,7 @@ mod tests {
         assert_eq!(t.get("jacobian").unwrap().as_u8(), Some(&[1u8][..]));
         assert!(t.get("wavelengths").is_none());
         let theta = t.get("theta_i").unwrap().as_f32().unwrap();
-        assert!(theta.windows(2).all(|w| w[0] < w[1]) && theta[4] < 1.5708);
+        assert!(theta.windows(2).all(|w| w[0] < w[1]) && theta[4] < std::f32::consts::FRAC_PI_2);
         for name in ["ndf", "sigma", "vndf", "luminance", "rgb"] {
             let v = t.get(name).unwrap().as_f32().unwrap();
             assert!(v.iter().all(|x| x.is_finite() && *x >= 0.0), "{name}");

@@ -278,9 +278,9 @@ fn component_weights(model: &Model, broad: f64) -> (f64, Vec<f64>) {
     }
 }
 
-/// The proxy NDF of a model on an (h x w) table: rows phi_m = u2phi(j / (h
-/// - 1)), columns u_theta = k / (w - 1); unit projected area (integral of
-/// D cos theta_m = 1). One row's worth of work for an isotropic model.
+/// The proxy NDF of a model on an (h x w) table: rows phi_m =
+/// u2phi(j / (h - 1)), columns u_theta = k / (w - 1); unit projected area
+/// (integral of D cos theta_m = 1). One row's worth of work for an isotropic model.
 fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
     let iso = model.layout.is_isotropic();
     let d_of = |m: usize, theta: f64, phi: f64| {
@@ -312,14 +312,14 @@ fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
     // flanks of a sharp lobe, where f falls by orders of magnitude, keep
     // sample nodes too.
     let mut parts: Vec<(usize, f64, f64)> = Vec::new();
-    for m in 0..model.lobes.len() {
-        if !(shares[m] > 0.0) {
+    for (m, &share) in shares.iter().enumerate() {
+        if share <= 0.0 || share.is_nan() {
             continue;
         }
         for (rho, frac) in LOBE_SPREAD {
             let a = area(m, rho);
             if a > 0.0 && a.is_finite() {
-                parts.push((m, rho, shares[m] * frac / a));
+                parts.push((m, rho, share * frac / a));
             }
         }
     }
