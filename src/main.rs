@@ -25,6 +25,8 @@ enum Command {
     Reconstruct(cli::reconstruct::ReconstructArgs),
     /// Evaluate a model at given directions.
     Eval(cli::eval::EvalArgs),
+    /// Write a model for a renderer: .bsdf (RGL tensor file) or .binary (MERL table).
+    Export(cli::export::ExportArgs),
     /// The main job on self-made data: tabulate an analytic BRDF, fit it, export, reconstruct.
     Demo(cli::demo::DemoArgs),
     /// Draw directions from a model's importance sampler (CSV of wi, pdf, weight).
@@ -45,6 +47,7 @@ fn main() -> ExitCode {
         Command::Info(a) => cli::info::run(a),
         Command::Reconstruct(a) => cli::reconstruct::run(a),
         Command::Eval(a) => cli::eval::run(a),
+        Command::Export(a) => cli::export::run(a),
         Command::Demo(a) => cli::demo::run(a),
         Command::Sample(a) => cli::sample::run(a),
         Command::Compare(a) => cli::compare::run(a),

@@ -12,10 +12,12 @@ pub mod error;
 pub mod geometry;
 pub mod merl;
 mod planar;
+pub mod rgl;
 pub mod samples;
 pub mod utia;
 
 pub use error::LoadError;
 pub use merl::MerlTable;
+pub use rgl::TensorFile;
 pub use samples::{MeasuredSample, MeasuredSamples};
 pub use utia::UtiaTable;

@@ -10,6 +10,7 @@ pub mod demo;
 pub mod energy;
 pub mod energy_plot;
 pub mod eval;
+pub mod export;
 pub mod fit;
 pub mod info;
 pub mod png;

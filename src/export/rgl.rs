@@ -1,0 +1,648 @@
+//! A model as an RGL `.bsdf` tensor file (Dupuy & Jakob 2018), the layout
+//! Mitsuba 3's `measured` plugin and pbrt-v4's `MeasuredBxDF` read
+//! (`../shared/docs/RGL_FORMAT.md`; the recipe of its section 7).
+//!
+//! - The proxy NDF is the fit's own D: the lobes' D^m tables, each
+//!   normalised to unit projected area and weighted by the lobe's share of
+//!   the albedo at normal incidence (npf's albedo quadrature), plus a constant 1/pi part weighted by the diffuse
+//!   share, at least [`RglOptions::broad`] (default [`BROAD_FLOOR`]), so
+//!   the broad part of f keeps sample nodes; each lobe also enters widened
+//!   ([`LOBE_SPREAD`]), so its flanks keep nodes. `ndf` and `sigma` tabulate it, so the renderer's own importance
+//!   sampling (`vndf`) follows the fit's lobes.
+//! - `rgb` (or `spectra`) holds f cos theta_o from [`Model::eval`] at every
+//!   node of the warped sample grid, divided by the jacobian
+//!   D~(m) / (4 sigma~(wi)) of the stored tables' own interpolants, so the
+//!   reader's value is exact at the nodes; `luminance` is its luminance
+//!   times |d omega_o / d s|, which makes the renderer's sampling density
+//!   proportional to the luminance of f cos theta_o.
+//! - Version 1.0, `jacobian` = 1 (what pbrt-v4 requires). Isotropic models
+//!   have `phi_i` = [0]; anisotropic ones `phi_i` nodes over [-pi, pi]
+//!   (end slices equal, the only range pbrt-v4 accepts) and 2-D `ndf` and
+//!   `sigma` over absolute azimuths.
+//!
+//! RGB-to-spectrum upsampling (`--spectral`): Smits (1999), "An RGB to
+//! Spectrum Conversion for Reflectances": each RGB triple is the white
+//! basis spectrum times min(R, G, B) plus the cyan/magenta/yellow basis
+//! spectrum times the middle excess plus the red/green/blue one times the
+//! top excess; ten bins over 380-720 nm, written at the bin centres. It is
+//! non-negative for non-negative RGB and linear in the RGB scale.
+
+use crate::model::Model;
+use npf_data_loaders::geometry::{spherical, Angles, Vec3};
+use npf_data_loaders::rgl::{Field, TensorFile};
+use rayon::prelude::*;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+use super::ExportError;
+
+/// Default least weight of the constant (diffuse-like) part of the proxy
+/// NDF ([`RglOptions::broad`]).
+pub const BROAD_FLOOR: f64 = 0.25;
+/// Largest theta_i node, degrees (the format avoids exactly 90).
+pub const MAX_THETA_I_DEG: f64 = 88.0;
+/// Largest resolution accepted for any table axis.
+pub const MAX_RES: usize = 512;
+/// How each lobe's share of the proxy NDF is spread: (widening factor
+/// rho, fraction) pairs; the lobe D^m(theta) and D^m(theta / rho).
+pub const LOBE_SPREAD: [(f64, f64); 3] = [(1.0, 0.6), (3.0, 0.25), (9.0, 0.15)];
+/// Azimuth rows of the `ndf` and `sigma` tables of anisotropic models.
+pub const ANISO_PHI_ROWS: usize = 49;
+/// Rec. 709 luminance weights.
+const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// Table resolutions of an exported `.bsdf`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RglOptions {
+    /// Nodes of theta_i over [0, 88] degrees (uniform in sqrt-angle u).
+    pub theta_i: usize,
+    /// Sample-grid nodes per axis (`rgb` and `luminance` are N x N per theta_i).
+    pub samples: usize,
+    /// `vndf` nodes per axis.
+    pub vndf: usize,
+    /// `ndf` and `sigma` nodes along theta.
+    pub ndf: usize,
+    /// Nodes of phi_i over [-pi, pi] for anisotropic models (isotropic
+    /// ones have the single node 0).
+    pub phi_i: usize,
+    /// Least share of the proxy NDF's constant part, in [0, 1): the
+    /// fraction of the sample nodes kept for the broad part of f.
+    pub broad: f64,
+    /// Write `spectra` + `wavelengths` (Smits upsampling) instead of `rgb`.
+    pub spectral: bool,
+}
+
+impl Default for RglOptions {
+    fn default() -> Self {
+        RglOptions {
+            theta_i: 48,
+            samples: 64,
+            vndf: 48,
+            ndf: 128,
+            phi_i: 13,
+            broad: BROAD_FLOOR,
+            spectral: false,
+        }
+    }
+}
+
+impl RglOptions {
+    /// Checks every resolution is in 2..=[`MAX_RES`].
+    pub fn validate(&self) -> Result<(), ExportError> {
+        for (name, n) in [
+            ("theta_i", self.theta_i),
+            ("samples", self.samples),
+            ("vndf", self.vndf),
+            ("ndf", self.ndf),
+            ("phi_i", self.phi_i),
+        ] {
+            if !(2..=MAX_RES).contains(&n) {
+                return Err(ExportError::Option(format!(
+                    "{name} resolution {n}: must be between 2 and {MAX_RES}"
+                )));
+            }
+        }
+        if !(self.broad >= 0.0 && self.broad < 1.0) {
+            return Err(ExportError::Option(format!(
+                "broad {}: must be in [0, 1)",
+                self.broad
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// theta of a sqrt-angle coordinate u (u = sqrt(2 theta / pi)).
+#[inline]
+fn u2theta(u: f64) -> f64 {
+    u * u * FRAC_PI_2
+}
+
+#[inline]
+fn theta2u(theta: f64) -> f64 {
+    (theta / FRAC_PI_2).max(0.0).sqrt()
+}
+
+/// The piecewise-bilinear 2-D warp of Mitsuba's `Marginal2D<…, true>` /
+/// pbrt's `PiecewiseLinear2D` (format spec section 5), forward map only:
+/// what places the sample nodes.
+pub struct Warp2D {
+    w: usize,
+    h: usize,
+    /// Normalised density values, row-major (H x W).
+    f: Vec<f64>,
+    /// Conditional CDFs, row-major (H x W).
+    cond: Vec<f64>,
+    /// Marginal CDF (H).
+    marg: Vec<f64>,
+}
+
+/// Solves integral_0^t lerp(a, b, tau) d tau = target for t in [0, 1].
+#[inline]
+fn linear_segment(a: f64, b: f64, target: f64) -> f64 {
+    let t = if (a - b).abs() <= 1e-4 * (a + b) {
+        2.0 * target / (a + b)
+    } else {
+        (a - (a * a + 2.0 * target * (b - a)).max(0.0).sqrt()) / (a - b)
+    };
+    if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Index of the last entry of `cdf[..n-1]` that is <= x.
+fn interval(n: usize, x: f64, at: impl Fn(usize) -> f64) -> usize {
+    let (mut lo, mut hi) = (0usize, n - 1);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if at(mid) <= x {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+impl Warp2D {
+    /// Builds the warp of a non-negative (H x W) table with H, W >= 2 and a
+    /// positive integral; `None` otherwise.
+    pub fn new(table: &[f64], h: usize, w: usize) -> Option<Self> {
+        if h < 2 || w < 2 || table.len() != h * w {
+            return None;
+        }
+        let mut cond = vec![0.0; h * w];
+        for j in 0..h {
+            for k in 1..w {
+                cond[j * w + k] = cond[j * w + k - 1]
+                    + (table[j * w + k - 1] + table[j * w + k]) / (2.0 * (w - 1) as f64);
+            }
+        }
+        let row = |j: usize| cond[j * w + w - 1];
+        let mut marg = vec![0.0; h];
+        for j in 1..h {
+            marg[j] = marg[j - 1] + (row(j - 1) + row(j)) / (2.0 * (h - 1) as f64);
+        }
+        let total = marg[h - 1];
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        Some(Warp2D {
+            w,
+            h,
+            f: table.iter().map(|v| v / total).collect(),
+            cond: cond.iter().map(|v| v / total).collect(),
+            marg: marg.iter().map(|v| v / total).collect(),
+        })
+    }
+
+    /// Maps a point s of the unit square to u, with the density of u.
+    pub fn sample(&self, s: [f64; 2]) -> ([f64; 2], f64) {
+        let (w, h) = (self.w, self.h);
+        let row = |j: usize| self.cond[j * w + w - 1];
+        let sy = s[1].clamp(0.0, 1.0);
+        let j = interval(h, sy, |j| self.marg[j]);
+        let (r0, r1) = (row(j), row(j + 1));
+        let ty = linear_segment(r0, r1, (sy - self.marg[j]) * (h - 1) as f64);
+        let uy = (j as f64 + ty) / (h - 1) as f64;
+        let c = |k: usize| self.cond[j * w + k] * (1.0 - ty) + self.cond[(j + 1) * w + k] * ty;
+        let target = s[0].clamp(0.0, 1.0) * (r0 * (1.0 - ty) + r1 * ty);
+        let k = interval(w, target, c);
+        let fv = |k: usize| self.f[j * w + k] * (1.0 - ty) + self.f[(j + 1) * w + k] * ty;
+        let (c0, c1) = (fv(k), fv(k + 1));
+        let tx = linear_segment(c0, c1, (target - c(k)) * (w - 1) as f64);
+        let ux = (k as f64 + tx) / (w - 1) as f64;
+        ([ux, uy], c0 * (1.0 - tx) + c1 * tx)
+    }
+}
+
+/// A table on the unit square (H x W, nodes j / (H - 1), k / (W - 1)),
+/// bilinear, x clamped and y wrapped into [0, 1) as the readers do.
+struct Table2 {
+    h: usize,
+    w: usize,
+    v: Vec<f64>,
+}
+
+impl Table2 {
+    fn at(&self, x: f64, y: f64) -> f64 {
+        let (h, w) = (self.h, self.w);
+        let x = x.clamp(0.0, 1.0) * (w - 1) as f64;
+        let y = (y - y.floor()).clamp(0.0, 1.0) * (h - 1) as f64;
+        let (k, j) = (
+            (x.floor() as usize).min(w - 2),
+            (y.floor() as usize).min(h - 2),
+        );
+        let (tx, ty) = (x - k as f64, y - j as f64);
+        let row = |j: usize| self.v[j * w + k] * (1.0 - tx) + self.v[j * w + k + 1] * tx;
+        row(j) * (1.0 - ty) + row(j + 1) * ty
+    }
+}
+
+/// phi of a unit-square coordinate (phi = (2 u - 1) pi).
+#[inline]
+fn u2phi(u: f64) -> f64 {
+    (2.0 * u - 1.0) * PI
+}
+
+#[inline]
+fn phi2u(phi: f64) -> f64 {
+    (phi + PI) / (2.0 * PI)
+}
+
+/// Weights of the proxy's parts: the components' shares of the
+/// directional albedo (luminance) at normal incidence, by npf's albedo
+/// quadrature; the diffuse share at least `broad`.
+fn component_weights(model: &Model, broad: f64) -> (f64, Vec<f64>) {
+    let lum = |v: [f64; 3]| (0..3).map(|c| LUMINANCE[c] * v[c]).sum::<f64>();
+    let lobes =
+        crate::bsdf::half_vector_quadrature(0.0, 64, 128, model.lobes.len(), |wo, wi, w, acc| {
+            model.lobe_terms(&Angles::from_directions(wi, wo), |m, t| {
+                acc[m] += lum(t).max(0.0) * w;
+            });
+        });
+    let diffuse = lum(model.diffuse.map(f64::from)) * PI;
+    let total = diffuse + lobes.iter().sum::<f64>();
+    if !(total > 0.0 && total.is_finite()) {
+        return (1.0, vec![0.0; lobes.len()]);
+    }
+    let lobes: Vec<f64> = lobes.iter().map(|a| (a / total).max(0.0)).collect();
+    // Lobe shares scaled so that the constant part gets at least `broad`.
+    let d = diffuse / total;
+    if d >= broad {
+        (d, lobes)
+    } else {
+        let k = (1.0 - broad) / (1.0 - d).max(1e-300);
+        (broad, lobes.iter().map(|a| a * k).collect())
+    }
+}
+
+/// The proxy NDF of a model on an (h x w) table: rows phi_m =
+/// u2phi(j / (h - 1)), columns u_theta = k / (w - 1); unit projected area
+/// (integral of D cos theta_m = 1). One row's worth of work for an isotropic model.
+fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
+    let iso = model.layout.is_isotropic();
+    let d_of = |m: usize, theta: f64, phi: f64| {
+        model
+            .layout
+            .d
+            .stencil(theta, phi)
+            .apply_f32(&model.lobes[m].d)
+            .max(0.0)
+    };
+    // Projected area of each lobe's D by a midpoint rule in u (d theta =
+    // pi u du, fine near the pole where the peaks are) and phi.
+    let (qu, qphi) = if iso { (4096, 1) } else { (1024, 192) };
+    let area = |m: usize, rho: f64| -> f64 {
+        let mut s = 0.0;
+        for a in 0..qu {
+            let u = (a as f64 + 0.5) / qu as f64;
+            let t = u2theta(u);
+            let ring: f64 = (0..qphi)
+                .map(|b| d_of(m, t / rho, (b as f64 + 0.5) / qphi as f64 * 2.0 * PI))
+                .sum::<f64>()
+                / qphi as f64;
+            s += ring * t.cos() * t.sin() * 2.0 * PI * PI * u / qu as f64;
+        }
+        s
+    };
+    let (broad, shares) = component_weights(model, broad);
+    // Each lobe enters as itself and widened (D^m(theta / rho)), so the
+    // flanks of a sharp lobe, where f falls by orders of magnitude, keep
+    // sample nodes too.
+    let mut parts: Vec<(usize, f64, f64)> = Vec::new();
+    for (m, &share) in shares.iter().enumerate() {
+        if share <= 0.0 || share.is_nan() {
+            continue;
+        }
+        for (rho, frac) in LOBE_SPREAD {
+            let a = area(m, rho);
+            if a > 0.0 && a.is_finite() {
+                parts.push((m, rho, share * frac / a));
+            }
+        }
+    }
+    let total = broad
+        + parts
+            .iter()
+            .map(|&(m, rho, wt)| wt * area(m, rho))
+            .sum::<f64>();
+    let value = |theta: f64, phi: f64| {
+        let lobes: f64 = parts
+            .iter()
+            .map(|&(m, rho, wt)| wt * d_of(m, theta / rho, phi))
+            .sum();
+        (lobes + broad / PI) / total
+    };
+    let mut v = vec![0.0; h * w];
+    for j in 0..h {
+        for k in 0..w {
+            let t = u2theta(k as f64 / (w - 1) as f64);
+            v[j * w + k] = if iso && j > 0 {
+                v[k]
+            } else {
+                value(t, u2phi(j as f64 / (h - 1) as f64))
+            };
+        }
+    }
+    Table2 { h, w, v }
+}
+
+/// Projected area sigma(wi) = integral of D(m) max(0, m . wi) d omega_m of
+/// the proxy NDF (its table's interpolant) on an (h x w) table over
+/// (phi_i, u_theta(theta_i)), like `ndf`. One row for an isotropic NDF.
+fn projected_area(ndf: &Table2, h: usize, w: usize, iso: bool) -> Table2 {
+    let (qu, qphi) = if iso { (1024, 256) } else { (256, 128) };
+    let rows = if iso { 1 } else { h };
+    let v: Vec<f64> = (0..rows * w)
+        .into_par_iter()
+        .map(|idx| {
+            let (j, k) = (idx / w, idx % w);
+            let theta_i = u2theta(k as f64 / (w - 1) as f64);
+            let phi_i = u2phi(j as f64 / (h - 1) as f64);
+            let wi = spherical(theta_i, phi_i);
+            let mut s = 0.0;
+            for a in 0..qu {
+                let u = (a as f64 + 0.5) / qu as f64;
+                let t = u2theta(u);
+                let mut ring = 0.0;
+                for b in 0..qphi {
+                    let phi = (b as f64 + 0.5) / qphi as f64 * 2.0 * PI - PI;
+                    let m = spherical(t, phi);
+                    let c = dot(m, wi);
+                    if c > 0.0 {
+                        ring += c * ndf.at(u, phi2u(phi));
+                    }
+                }
+                s += ring / qphi as f64 * 2.0 * PI * t.sin() * PI * u / qu as f64;
+            }
+            s
+        })
+        .collect();
+    let v = if iso { v.repeat(h) } else { v };
+    Table2 { h, w, v }
+}
+
+fn dot(a: Vec3, b: Vec3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Smits' ten basis spectra (white, cyan, magenta, yellow, red, green,
+/// blue), bins of 34 nm over 380-720 nm.
+const SMITS: [[f64; 10]; 7] = [
+    [
+        1.0000, 1.0000, 0.9999, 0.9993, 0.9992, 0.9998, 1.0000, 1.0000, 1.0000, 1.0000,
+    ],
+    [
+        0.9710, 0.9426, 1.0007, 1.0007, 1.0007, 1.0007, 0.1564, 0.0000, 0.0000, 0.0000,
+    ],
+    [
+        1.0000, 1.0000, 0.9685, 0.2229, 0.0000, 0.0458, 0.8369, 1.0000, 1.0000, 0.9959,
+    ],
+    [
+        0.0001, 0.0000, 0.1088, 0.6651, 1.0000, 1.0000, 0.9996, 0.9586, 0.9685, 0.9840,
+    ],
+    [
+        0.1012, 0.0515, 0.0000, 0.0000, 0.0000, 0.0000, 0.8325, 1.0149, 1.0149, 1.0149,
+    ],
+    [
+        0.0000, 0.0000, 0.0273, 0.7937, 1.0000, 0.9418, 0.1719, 0.0000, 0.0000, 0.0025,
+    ],
+    [
+        1.0000, 1.0000, 0.8916, 0.3323, 0.0000, 0.0000, 0.0003, 0.0369, 0.0483, 0.0496,
+    ],
+];
+
+/// The wavelengths (nm) of the spectral layout: Smits' bin centres.
+pub fn wavelengths() -> Vec<f64> {
+    (0..10).map(|k| 380.0 + 34.0 * (k as f64 + 0.5)).collect()
+}
+
+/// Smits' RGB-to-spectrum upsampling of one (non-negative) RGB triple.
+pub fn rgb_to_spectrum(rgb: [f64; 3]) -> [f64; 10] {
+    let [r, g, b] = rgb.map(|v| v.max(0.0));
+    let (w, c, m, y, rd, gr, bl) = (0, 1, 2, 3, 4, 5, 6);
+    let mut terms: Vec<(usize, f64)> = Vec::with_capacity(3);
+    if r <= g && r <= b {
+        terms.push((w, r));
+        if g <= b {
+            terms.extend([(c, g - r), (bl, b - g)]);
+        } else {
+            terms.extend([(c, b - r), (gr, g - b)]);
+        }
+    } else if g <= r && g <= b {
+        terms.push((w, g));
+        if r <= b {
+            terms.extend([(m, r - g), (bl, b - r)]);
+        } else {
+            terms.extend([(m, b - g), (rd, r - b)]);
+        }
+    } else {
+        terms.push((w, b));
+        if r <= g {
+            terms.extend([(y, r - b), (gr, g - r)]);
+        } else {
+            terms.extend([(y, g - b), (rd, r - g)]);
+        }
+    }
+    std::array::from_fn(|l| terms.iter().map(|&(k, a)| a * SMITS[k][l]).sum())
+}
+
+/// The tensor file of a model: isotropic models with phi_i = [0],
+/// anisotropic ones with `phi_i` nodes over [-pi, pi].
+pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, ExportError> {
+    opts.validate()?;
+    model
+        .validate()
+        .map_err(|e| ExportError::Model(e.to_string()))?;
+    let iso = model.layout.is_isotropic();
+    let (t_n, n, nv, nd) = (opts.theta_i, opts.samples, opts.vndf, opts.ndf);
+    // The azimuth rows of ndf/sigma: constant for an isotropic model.
+    let hd = if iso { 2 } else { ANISO_PHI_ROWS };
+    let ndf = proxy_ndf(model, hd, nd, opts.broad);
+    let sigma = projected_area(&ndf, hd, nd, iso);
+    let u_max = theta2u(MAX_THETA_I_DEG.to_radians());
+    let theta_i: Vec<f64> = (0..t_n)
+        .map(|t| u2theta(u_max * t as f64 / (t_n - 1) as f64))
+        .collect();
+    let phi_i: Vec<f64> = if iso {
+        vec![0.0]
+    } else {
+        (0..opts.phi_i)
+            .map(|p| u2phi(p as f64 / (opts.phi_i - 1) as f64))
+            .collect()
+    };
+    let channels = if opts.spectral { 10 } else { 3 };
+
+    // Per (phi_i, theta_i) node: vndf slice, values (C x N x N), luminance (N x N).
+    type Slice = (Vec<f64>, Vec<f64>, Vec<f64>);
+    let nodes: Vec<(f64, f64)> = phi_i
+        .iter()
+        .flat_map(|&p| theta_i.iter().map(move |&t| (p, t)))
+        .collect();
+    let slices: Vec<Slice> = nodes
+        .par_iter()
+        .map(|&(pi_, ti)| {
+            let wi = spherical(ti, pi_);
+            // Isotropic files give phi_m relative to phi_i, anisotropic ones absolute.
+            let phi_offset = if iso { pi_ } else { 0.0 };
+            let sig = sigma.at(theta2u(ti), phi2u(pi_));
+            let mut vndf = vec![0.0; nv * nv];
+            for j in 0..nv {
+                let phi = u2phi(j as f64 / (nv - 1) as f64) + phi_offset;
+                for k in 0..nv {
+                    let u = k as f64 / (nv - 1) as f64;
+                    let tm = u2theta(u);
+                    let m = spherical(tm, phi);
+                    vndf[j * nv + k] = dot(wi, m).max(0.0) * ndf.at(u, phi2u(phi)) / sig
+                        * 2.0
+                        * PI
+                        * PI
+                        * u
+                        * tm.sin();
+                }
+            }
+            let mut values = vec![0.0; channels * n * n];
+            let mut lum = vec![0.0; n * n];
+            // A slice without mass (cannot happen for theta_i < 90 deg, since
+            // the proxy is positive) keeps the identity warp.
+            let warp = Warp2D::new(&vndf, nv, nv).or_else(|| {
+                vndf.iter_mut().for_each(|v| *v = 1.0);
+                Warp2D::new(&vndf, nv, nv)
+            });
+            let warp = warp.expect("a constant table has a warp");
+            for j in 0..n {
+                for k in 0..n {
+                    let s = [k as f64 / (n - 1) as f64, j as f64 / (n - 1) as f64];
+                    let (um, pv) = warp.sample(s);
+                    let tm = u2theta(um[0]);
+                    let phi_m = u2phi(um[1]) + phi_offset;
+                    let m = spherical(tm, phi_m);
+                    let wm = dot(wi, m);
+                    let wo = [
+                        2.0 * wm * m[0] - wi[0],
+                        2.0 * wm * m[1] - wi[1],
+                        2.0 * wm * m[2] - wi[2],
+                    ];
+                    if !(wo[2] > 0.0 && wm > 0.0) {
+                        continue;
+                    }
+                    let f = model.eval(wo, wi);
+                    let jac = ndf.at(um[0], phi2u(phi_m)) / (4.0 * sig);
+                    let v = f.map(|x| x * wo[2] / jac);
+                    let y: f64 = (0..3).map(|c| LUMINANCE[c] * f[c] * wo[2]).sum();
+                    let dwds = 4.0 * wm * (2.0 * PI * PI * um[0] * tm.sin()).max(1e-6) / pv;
+                    lum[j * n + k] = if dwds.is_finite() { y * dwds } else { 0.0 };
+                    if opts.spectral {
+                        let sp = rgb_to_spectrum(v);
+                        for (c, x) in sp.iter().enumerate() {
+                            values[(c * n + j) * n + k] = *x;
+                        }
+                    } else {
+                        for c in 0..3 {
+                            values[(c * n + j) * n + k] = v[c];
+                        }
+                    }
+                }
+            }
+            if !lum.iter().any(|&v| v > 0.0) {
+                lum.iter_mut().for_each(|v| *v = 1.0);
+            }
+            (vndf, values, lum)
+        })
+        .collect();
+
+    let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    let cat = |pick: fn(&Slice) -> &Vec<f64>| -> Vec<f32> {
+        slices.iter().flat_map(|s| f32s(pick(s))).collect()
+    };
+    let description = format!(
+        "npf export: non-parametric factor model, {} lobe(s), {}; proxy NDF = the fit's D; \
+         values from Model::eval{}",
+        model.lobes.len(),
+        if iso { "isotropic" } else { "anisotropic" },
+        if opts.spectral {
+            "; spectra by Smits (1999) RGB upsampling"
+        } else {
+            ""
+        }
+    );
+    let p_n = phi_i.len();
+    let mut fields = vec![
+        Field::u8(
+            "description",
+            &[description.len()],
+            description.into_bytes(),
+        ),
+        Field::f32("phi_i", &[p_n], f32s(&phi_i)),
+        Field::f32("theta_i", &[t_n], f32s(&theta_i)),
+        Field::f32("ndf", &[hd, nd], f32s(&ndf.v)),
+        Field::f32("sigma", &[hd, nd], f32s(&sigma.v)),
+        Field::f32("vndf", &[p_n, t_n, nv, nv], cat(|s| &s.0)),
+        Field::f32("luminance", &[p_n, t_n, n, n], cat(|s| &s.2)),
+    ];
+    if opts.spectral {
+        fields.push(Field::f32(
+            "spectra",
+            &[p_n, t_n, channels, n, n],
+            cat(|s| &s.1),
+        ));
+        fields.push(Field::f32("wavelengths", &[channels], f32s(&wavelengths())));
+    } else {
+        fields.push(Field::f32("rgb", &[p_n, t_n, 3, n, n], cat(|s| &s.1)));
+    }
+    fields.push(Field::u8("jacobian", &[1], vec![1]));
+    Ok(TensorFile { fields })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn warp_of_a_constant_table_is_the_identity() {
+        let w = Warp2D::new(&[1.0; 12], 3, 4).unwrap();
+        for s in [[0.0, 0.0], [0.3, 0.7], [1.0, 1.0], [0.5, 0.25]] {
+            let (u, p) = w.sample(s);
+            assert!(
+                (u[0] - s[0]).abs() < 1e-12 && (u[1] - s[1]).abs() < 1e-12,
+                "{u:?}"
+            );
+            assert!((p - 1.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn warp_pushes_uniform_points_to_the_density() {
+        // Density rising along x: the warped mean of x is its mean under
+        // the (normalised bilinear) density, 2/3 for f = x.
+        let (h, w) = (2, 9);
+        let t: Vec<f64> = (0..h * w)
+            .map(|i| (i % w) as f64 / (w - 1) as f64)
+            .collect();
+        let warp = Warp2D::new(&t, h, w).unwrap();
+        let n = 200;
+        let mut mean = 0.0;
+        for a in 0..n {
+            for b in 0..n {
+                let s = [(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64];
+                let (u, p) = warp.sample(s);
+                assert!((p - 2.0 * u[0]).abs() < 1e-9);
+                mean += u[0];
+            }
+        }
+        mean /= (n * n) as f64;
+        assert!((mean - 2.0 / 3.0).abs() < 1e-4, "{mean}");
+    }
+
+    #[test]
+    fn smits_white_is_flat_and_scales_linearly() {
+        let s = rgb_to_spectrum([0.5, 0.5, 0.5]);
+        assert!(s.iter().all(|v| (v - 0.5).abs() < 1e-3));
+        let a = rgb_to_spectrum([0.9, 0.3, 0.1]);
+        let b = rgb_to_spectrum([1.8, 0.6, 0.2]);
+        assert!(a.iter().zip(&b).all(|(x, y)| (2.0 * x - y).abs() < 1e-12));
+        assert!(a.iter().all(|&v| v >= 0.0));
+    }
+}
