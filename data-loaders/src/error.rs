@@ -44,6 +44,24 @@ pub enum LoadError {
     /// Anything else wrong with the contents.
     #[error("{path}: {problem}")]
     Invalid { path: PathBuf, problem: String },
+    /// The path is not a regular file (a directory, FIFO, device, socket or
+    /// dangling symbolic link): `kind` says which, `expected` what was wanted.
+    #[error("{path}: is {kind}, not {expected}")]
+    NotRegular {
+        path: PathBuf,
+        kind: String,
+        expected: &'static str,
+    },
+    /// The file is larger than the format allows (checked before reading).
+    #[error("{path}: {size} bytes, more than the {max} bytes this format allows")]
+    TooLarge { path: PathBuf, size: u64, max: u64 },
+    /// The file is another known kind of file than the one expected.
+    #[error("{path}: not {expected}: it looks like {found}")]
+    WrongFormat {
+        path: PathBuf,
+        expected: &'static str,
+        found: String,
+    },
 }
 
 fn size_problem(expected: u64, actual: u64) -> &'static str {
@@ -88,7 +106,10 @@ impl LoadError {
             | LoadError::BadHeader { path, .. }
             | LoadError::NonFinite { path, .. }
             | LoadError::Exists { path }
-            | LoadError::Invalid { path, .. } => path,
+            | LoadError::Invalid { path, .. }
+            | LoadError::NotRegular { path, .. }
+            | LoadError::TooLarge { path, .. }
+            | LoadError::WrongFormat { path, .. } => path,
         }
     }
 }

@@ -12,6 +12,7 @@ pub mod geometry;
 pub mod merl;
 mod planar;
 pub mod samples;
+pub mod sniff;
 pub mod utia;
 
 pub use error::LoadError;

@@ -65,7 +65,7 @@ impl MerlTable {
     /// Reads a MERL file. The size is checked before anything is allocated;
     /// see [`MerlTable::from_bytes`] for the other checks.
     pub fn read(path: &Path) -> Result<Self, LoadError> {
-        let bytes = planar::read_exact_size(path, Self::FILE_BYTES)?;
+        let bytes = planar::read_exact_size_as(path, Self::FILE_BYTES, "a MERL table (.binary)")?;
         Self::from_bytes(&bytes, path)
     }
 

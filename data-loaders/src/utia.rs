@@ -64,7 +64,7 @@ impl UtiaTable {
 
     /// Reads a UTIA `.bin` file; see [`UtiaTable::from_bytes`] for the checks.
     pub fn read(path: &Path) -> Result<Self, LoadError> {
-        let bytes = planar::read_exact_size(path, Self::FILE_BYTES)?;
+        let bytes = planar::read_exact_size_as(path, Self::FILE_BYTES, "a UTIA table (.bin)")?;
         Self::from_bytes(&bytes, path)
     }
 
