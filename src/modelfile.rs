@@ -386,11 +386,17 @@ pub fn read(path: &Path) -> Result<ModelFile, ModelFileError> {
     };
     let bytes = npf_data_loaders::sniff::read_bounded(path, MAX_FILE_BYTES, what).map_err(|e| {
         match e {
-            // Name what the oversized file is (a MERL table, most likely).
-            LoadError::TooLarge { .. } => LoadError::WrongFormat {
-                path: path.to_path_buf(),
-                expected: what,
-                found: npf_data_loaders::sniff::describe(path),
+            // Name what an oversized file is, if it is a known kind (a MERL
+            // table, most likely).
+            LoadError::TooLarge { .. } => match npf_data_loaders::sniff::describe(path) {
+                found if !found.starts_with("a binary file") && !found.starts_with("a text file") => {
+                    LoadError::WrongFormat {
+                        path: path.to_path_buf(),
+                        expected: what,
+                        found,
+                    }
+                }
+                _ => e,
             },
             e => e,
         }

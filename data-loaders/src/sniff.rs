@@ -46,8 +46,9 @@ fn special_kind(meta: &Metadata) -> Option<&'static str> {
     Some("not a regular file")
 }
 
-/// What the first bytes and the size of a regular file say it is.
-fn describe_contents(head: &[u8], size: u64) -> String {
+/// What the first bytes (`head`, a few kilobytes are enough) and the size of
+/// a regular file say it is: [`describe`] without the file system.
+pub fn describe_bytes(head: &[u8], size: u64) -> String {
     let text = std::str::from_utf8(head).ok();
     let trimmed = text.map(str::trim_start);
     if size == 0 {
@@ -119,7 +120,7 @@ pub fn describe(path: &Path) -> String {
     } else {
         &head[..]
     };
-    describe_contents(head, meta.len())
+    describe_bytes(head, meta.len())
 }
 
 /// Opens `path` for reading if it is a regular file (after following
