@@ -232,6 +232,7 @@ fn special_and_endless_inputs_are_refused_without_blocking() {
     std::fs::create_dir(&folder).unwrap();
     let out = dir.path().join("o.json");
     let rbin = dir.path().join("r.binary");
+    let svg = dir.path().join("p.svg");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["info", s(&zero)], "is a character device"),
         (vec!["eval", s(&urandom), "0", "0", "0", "0"], "is a character device"),
@@ -240,6 +241,7 @@ fn special_and_endless_inputs_are_refused_without_blocking() {
         (vec!["fit", s(&folder), "-o", s(&out)], "is a directory, not a MERL table"),
         (vec!["info", s(&folder)], "is a directory"),
         (vec!["reconstruct", s(&fifo_model), "-o", s(&rbin)], "is a FIFO"),
+        (vec!["energy", "plot", "-o", s(&svg), "--font", s(&fifo_model)], "is a FIFO"),
     ];
     for (args, needle) in cases {
         let o = npf_within(&args, Duration::from_secs(10));
