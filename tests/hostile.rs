@@ -168,7 +168,17 @@ fn outputs_that_cannot_be_written_are_refused_before_any_work() {
         assert_fails(&o, needle);
     }
     // A device is never replaced, even with --force.
-    let o = npf(&["sample", s(&write_model(dir.path(), "m.json")), "--theta-o", "30", "--n", "10", "-o", "/dev/null", "--force"]);
+    let o = npf(&[
+        "sample",
+        s(&write_model(dir.path(), "m.json")),
+        "--theta-o",
+        "30",
+        "--n",
+        "10",
+        "-o",
+        "/dev/null",
+        "--force",
+    ]);
     assert_fails(&o, "character device");
     assert!(start.elapsed() < Duration::from_secs(20));
     assert!(Path::new("/dev/null").exists());
@@ -190,7 +200,11 @@ fn data_beyond_float32_and_absurd_weights_are_refused_not_converged() {
     }
     let t = table(dir.path(), "t.binary", 1.0);
     let out = dir.path().join("t.json");
-    for (flag, value) in [("--epsilon", "1e300"), ("--epsilon", "0"), ("--max-theta", "1e9")] {
+    for (flag, value) in [
+        ("--epsilon", "1e300"),
+        ("--epsilon", "0"),
+        ("--max-theta", "1e9"),
+    ] {
         let o = npf(&["fit", s(&t), "-o", s(&out), "--quiet", flag, value]);
         assert_fails(&o, flag);
     }
@@ -206,8 +220,15 @@ fn a_model_file_that_could_not_be_read_back_is_never_written() {
         ..Default::default()
     };
     let json = dir.path().join("m.json");
-    let e = modelfile::write(&json, &ModelFile { model: model.clone(), fit: Some(info) }, false)
-        .unwrap_err();
+    let e = modelfile::write(
+        &json,
+        &ModelFile {
+            model: model.clone(),
+            fit: Some(info),
+        },
+        false,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("could not be read back"), "{e}");
     model.lobes[0].d[3] = f32::INFINITY;
     let bin = dir.path().join("m.npfb");
@@ -235,13 +256,25 @@ fn special_and_endless_inputs_are_refused_without_blocking() {
     let svg = dir.path().join("p.svg");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["info", s(&zero)], "is a character device"),
-        (vec!["eval", s(&urandom), "0", "0", "0", "0"], "is a character device"),
+        (
+            vec!["eval", s(&urandom), "0", "0", "0", "0"],
+            "is a character device",
+        ),
         (vec!["info", s(&fifo_model)], "is a FIFO"),
         (vec!["fit", s(&fifo), "-o", s(&out)], "is a FIFO"),
-        (vec!["fit", s(&folder), "-o", s(&out)], "is a directory, not a MERL table"),
+        (
+            vec!["fit", s(&folder), "-o", s(&out)],
+            "is a directory, not a MERL table",
+        ),
         (vec!["info", s(&folder)], "is a directory"),
-        (vec!["reconstruct", s(&fifo_model), "-o", s(&rbin)], "is a FIFO"),
-        (vec!["energy", "plot", "-o", s(&svg), "--font", s(&fifo_model)], "is a FIFO"),
+        (
+            vec!["reconstruct", s(&fifo_model), "-o", s(&rbin)],
+            "is a FIFO",
+        ),
+        (
+            vec!["energy", "plot", "-o", s(&svg), "--font", s(&fifo_model)],
+            "is a FIFO",
+        ),
     ];
     for (args, needle) in cases {
         let o = npf_within(&args, Duration::from_secs(10));
@@ -310,19 +343,44 @@ fn resource_options_beyond_their_limits_are_refused_at_once() {
     let (d, r) = (dir.path().join("d"), dir.path().join("r"));
     let start = Instant::now();
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["fit", s(&t), "-o", s(&out), "--threads", "1000"], "--threads"),
-        (vec!["fit", s(&t), "-o", s(&out), "--threads", "99999999999"], "--threads"),
-        (vec!["fit", s(&t), "-o", s(&out), "--smooth-g", "1e9"], "--smooth-g"),
+        (
+            vec!["fit", s(&t), "-o", s(&out), "--threads", "1000"],
+            "--threads",
+        ),
+        (
+            vec!["fit", s(&t), "-o", s(&out), "--threads", "99999999999"],
+            "--threads",
+        ),
+        (
+            vec!["fit", s(&t), "-o", s(&out), "--smooth-g", "1e9"],
+            "--smooth-g",
+        ),
         (vec!["demo", "-o", s(&d), "--threads", "1000"], "--threads"),
-        (vec!["energy", "simulate", "--paths", "100000000000000"], "--paths"),
-        (vec!["energy", "tau", "--paths", "100000000000000"], "--paths"),
-        (vec!["sample", s(&m), "--theta-o", "10", "--n", "1000000000000"], "--n"),
-        (vec!["report", s(dir.path()), "-o", s(&r), "--jobs", "100000"], "--jobs"),
+        (
+            vec!["energy", "simulate", "--paths", "100000000000000"],
+            "--paths",
+        ),
+        (
+            vec!["energy", "tau", "--paths", "100000000000000"],
+            "--paths",
+        ),
+        (
+            vec!["sample", s(&m), "--theta-o", "10", "--n", "1000000000000"],
+            "--n",
+        ),
+        (
+            vec!["report", s(dir.path()), "-o", s(&r), "--jobs", "100000"],
+            "--jobs",
+        ),
     ];
     for (args, needle) in cases {
         assert_fails(&npf(&args), needle);
     }
-    assert!(start.elapsed() < Duration::from_secs(30), "{:?}", start.elapsed());
+    assert!(
+        start.elapsed() < Duration::from_secs(30),
+        "{:?}",
+        start.elapsed()
+    );
     assert_eq!(entries(dir.path()), vec!["m.json", "t.binary"]);
 }
 
@@ -331,7 +389,10 @@ fn options_are_checked_before_anything_is_written() {
     let dir = tempfile::tempdir().unwrap();
     // demo: a bad option leaves no table behind (the rerun is not refused).
     let d = dir.path().join("demo");
-    assert_fails(&npf(&["demo", "-o", s(&d), "--nodes", "3", "--quiet"]), "--nodes");
+    assert_fails(
+        &npf(&["demo", "-o", s(&d), "--nodes", "3", "--quiet"]),
+        "--nodes",
+    );
     assert!(!d.exists() || entries(&d).is_empty());
     // demo into a file that is not a folder.
     let f = dir.path().join("file");
@@ -340,7 +401,18 @@ fn options_are_checked_before_anything_is_written() {
     // sample: one file for two outputs.
     let m = write_model(dir.path(), "m.json");
     let csv = dir.path().join("s.csv");
-    let o = npf(&["sample", s(&m), "--theta-o", "30", "--n", "100", "-o", s(&csv), "--histogram", s(&csv)]);
+    let o = npf(&[
+        "sample",
+        s(&m),
+        "--theta-o",
+        "30",
+        "--n",
+        "100",
+        "-o",
+        s(&csv),
+        "--histogram",
+        s(&csv),
+    ]);
     assert_fails(&o, "give each output its own file");
     // compare: an image folder holding an input.
     let t = table(dir.path(), "t.binary", 1.0);
@@ -349,7 +421,10 @@ fn options_are_checked_before_anything_is_written() {
     std::fs::hard_link(&t, img.join("test.png")).unwrap();
     let o = npf(&["compare", s(&t), s(&t), "--images", s(&img), "--force"]);
     assert_fails(&o, "refusing to overwrite an input");
-    assert_eq!(entries(dir.path()), vec!["file", "img", "m.json", "t.binary"]);
+    assert_eq!(
+        entries(dir.path()),
+        vec!["file", "img", "m.json", "t.binary"]
+    );
     assert_eq!(entries(&img), vec!["test.png"]);
 }
 
@@ -360,23 +435,42 @@ fn a_signal_mid_write_leaves_no_temporary_file_and_stale_ones_are_cleaned() {
     let csv = dir.path().join("s.csv");
     for signal in ["TERM", "INT"] {
         let child = Command::new(env!("CARGO_BIN_EXE_npf"))
-            .args(["sample", s(&m), "--theta-o", "30", "--n", "100000000", "-o", s(&csv)])
+            .args([
+                "sample",
+                s(&m),
+                "--theta-o",
+                "30",
+                "--n",
+                "100000000",
+                "-o",
+                s(&csv),
+            ])
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
         // Wait until the temporary file exists (the write is under way).
         let start = Instant::now();
         while !entries(dir.path()).iter().any(|e| e.ends_with(".tmp")) {
-            assert!(start.elapsed() < Duration::from_secs(20), "no temporary file appeared");
+            assert!(
+                start.elapsed() < Duration::from_secs(20),
+                "no temporary file appeared"
+            );
             std::thread::sleep(Duration::from_millis(20));
         }
-        let st = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status().unwrap();
+        let st = Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
         assert!(st.success());
         let o = child.wait_with_output().unwrap();
         let code = o.status.code();
         let want = if signal == "TERM" { 143 } else { 130 };
         assert_eq!(code, Some(want), "{}", stderr(&o));
-        assert!(stderr(&o).contains("removed 1 unfinished output"), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("removed 1 unfinished output"),
+            "{}",
+            stderr(&o)
+        );
         assert_eq!(entries(dir.path()), vec!["m.json"]);
     }
     // A leftover of a killed run (a writer that no longer runs) is removed by
@@ -384,7 +478,16 @@ fn a_signal_mid_write_leaves_no_temporary_file_and_stale_ones_are_cleaned() {
     let stale = format!(".s.csv.npf-{}.q1w2e3.tmp", u32::MAX - 1);
     std::fs::write(dir.path().join(&stale), b"partial").unwrap();
     std::fs::write(dir.path().join(".keep.tmp"), b"not ours").unwrap();
-    let o = npf(&["sample", s(&m), "--theta-o", "30", "--n", "10", "-o", s(&csv)]);
+    let o = npf(&[
+        "sample",
+        s(&m),
+        "--theta-o",
+        "30",
+        "--n",
+        "10",
+        "-o",
+        s(&csv),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(entries(dir.path()), vec![".keep.tmp", "m.json", "s.csv"]);
 }
@@ -396,7 +499,16 @@ fn a_report_fails_loudly_when_every_fit_failed_or_a_model_is_unreadable() {
     std::fs::create_dir(&data).unwrap();
     table(&data, "big.binary", 1e42);
     let out = dir.path().join("r1");
-    let quick = ["--configs", "ggx", "--no-convergence", "--res", "16", "--n-theta", "4", "--quiet"];
+    let quick = [
+        "--configs",
+        "ggx",
+        "--no-convergence",
+        "--res",
+        "16",
+        "--n-theta",
+        "4",
+        "--quiet",
+    ];
     let mut args = vec!["report", s(&data), "-o", s(&out)];
     args.extend(quick);
     let o = npf_within(&args, Duration::from_secs(120));
@@ -415,7 +527,14 @@ fn a_report_fails_loudly_when_every_fit_failed_or_a_model_is_unreadable() {
     let model = out.join("good").join("ggx.json");
     assert!(model.exists());
     std::fs::write(&model, b"{ not a model").unwrap();
-    let mut args = vec!["report", s(&data), "-o", s(&out), "--from-rows", "--reevaluate"];
+    let mut args = vec![
+        "report",
+        s(&data),
+        "-o",
+        s(&out),
+        "--from-rows",
+        "--reevaluate",
+    ];
     args.extend(quick);
     let o = npf_within(&args, Duration::from_secs(120));
     assert_fails(&o, "cannot read its model");
@@ -425,7 +544,9 @@ fn a_report_fails_loudly_when_every_fit_failed_or_a_model_is_unreadable() {
 fn messages_say_what_a_file_is_when_it_is_not_what_was_expected() {
     let dir = tempfile::tempdir().unwrap();
     let utia = dir.path().join("u.binary");
-    UtiaTable::from_fn(|_, _, _, _| Some([0.1; 3])).write(&utia, false).unwrap();
+    UtiaTable::from_fn(|_, _, _, _| Some([0.1; 3]))
+        .write(&utia, false)
+        .unwrap();
     let model = write_model(dir.path(), "m.json");
     let as_table = dir.path().join("model.binary");
     std::fs::copy(&model, &as_table).unwrap();
@@ -434,11 +555,23 @@ fn messages_say_what_a_file_is_when_it_is_not_what_was_expected() {
     std::fs::copy(&t, &t_as_model).unwrap();
     let out = dir.path().join("o.json");
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["fit", s(&utia), "-o", s(&out)], "it looks like a UTIA table"),
-        (vec!["fit", s(&as_table), "-o", s(&out)], "it looks like an npf model (JSON)"),
-        (vec!["compare", s(&as_table), s(&model)], "it looks like an npf model (JSON)"),
+        (
+            vec!["fit", s(&utia), "-o", s(&out)],
+            "it looks like a UTIA table",
+        ),
+        (
+            vec!["fit", s(&as_table), "-o", s(&out)],
+            "it looks like an npf model (JSON)",
+        ),
+        (
+            vec!["compare", s(&as_table), s(&model)],
+            "it looks like an npf model (JSON)",
+        ),
         (vec!["info", s(&t_as_model)], "it looks like a MERL table"),
-        (vec!["eval", s(&t_as_model), "0", "0", "0", "0"], "it looks like a MERL table"),
+        (
+            vec!["eval", s(&t_as_model), "0", "0", "0", "0"],
+            "it looks like a MERL table",
+        ),
     ];
     for (args, needle) in cases {
         assert_fails(&npf(&args), needle);
@@ -450,7 +583,22 @@ fn messages_say_what_a_file_is_when_it_is_not_what_was_expected() {
 fn eval_follows_the_angle_convention() {
     let dir = tempfile::tempdir().unwrap();
     let m = write_model(dir.path(), "m.json");
-    let o = npf(&["eval", s(&m), "90", "0", "30", "180", "30", "0", "90", "0", "30", "0", "30", "180"]);
+    let o = npf(&[
+        "eval",
+        s(&m),
+        "90",
+        "0",
+        "30",
+        "180",
+        "30",
+        "0",
+        "90",
+        "0",
+        "30",
+        "0",
+        "30",
+        "180",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8_lossy(&o.stdout);
     let rows: Vec<Vec<f64>> = text

@@ -214,7 +214,10 @@ mod tests {
     fn refuses_special_files_and_oversized_ones() {
         let dir = tempfile::tempdir().unwrap();
         let e = open_regular(dir.path(), "a MERL table").unwrap_err();
-        assert!(e.to_string().contains("is a directory, not a MERL table"), "{e}");
+        assert!(
+            e.to_string().contains("is a directory, not a MERL table"),
+            "{e}"
+        );
         #[cfg(unix)]
         {
             let e = read_bounded(Path::new("/dev/zero"), 10, "a model").unwrap_err();
@@ -223,7 +226,17 @@ mod tests {
         let f = dir.path().join("big");
         std::fs::write(&f, vec![1u8; 11]).unwrap();
         let e = read_bounded(&f, 10, "a model").unwrap_err();
-        assert!(matches!(e, LoadError::TooLarge { size: 11, max: 10, .. }), "{e}");
+        assert!(
+            matches!(
+                e,
+                LoadError::TooLarge {
+                    size: 11,
+                    max: 10,
+                    ..
+                }
+            ),
+            "{e}"
+        );
         assert_eq!(read_bounded(&f, 11, "a model").unwrap().len(), 11);
     }
 }

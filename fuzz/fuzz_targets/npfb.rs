@@ -9,7 +9,8 @@ use std::path::Path;
 fuzz_target!(|data: &[u8]| {
     let p = Path::new("fuzz.npfb");
     if let Ok(m) = modelfile::from_binary(data, p) {
-        let again = modelfile::from_binary(&modelfile::to_binary(&m), p).expect("a written model reads back");
+        let again = modelfile::from_binary(&modelfile::to_binary(&m), p)
+            .expect("a written model reads back");
         assert_eq!(again, m);
     }
 });

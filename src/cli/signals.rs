@@ -27,9 +27,7 @@ pub fn install() {
                 let mut sig: libc::c_int = 0;
                 while libc::sigwait(&set, &mut sig) != 0 {}
                 let n = npf_data_loaders::atomic::remove_live_temps();
-                eprintln!(
-                    "npf: stopped by signal {sig}; removed {n} unfinished output file(s)"
-                );
+                eprintln!("npf: stopped by signal {sig}; removed {n} unfinished output file(s)");
                 std::process::exit(128 + sig);
             });
         if spawned.is_err() {
