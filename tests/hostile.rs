@@ -62,6 +62,13 @@ fn assert_fails(o: &Output, needle: &str) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
+/// `npf sample MODEL --theta-o 30 --n N EXTRA...`.
+fn sample(model: &Path, n: &str, extra: &[&str]) -> Output {
+    let mut args = vec!["sample", s(model), "--theta-o", "30", "--n", n];
+    args.extend_from_slice(extra);
+    npf(&args)
+}
+
 fn entries(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
@@ -401,18 +408,7 @@ fn options_are_checked_before_anything_is_written() {
     // sample: one file for two outputs.
     let m = write_model(dir.path(), "m.json");
     let csv = dir.path().join("s.csv");
-    let o = npf(&[
-        "sample",
-        s(&m),
-        "--theta-o",
-        "30",
-        "--n",
-        "100",
-        "-o",
-        s(&csv),
-        "--histogram",
-        s(&csv),
-    ]);
+    let o = sample(&m, "100", &["-o", s(&csv), "--histogram", s(&csv)]);
     assert_fails(&o, "give each output its own file");
     // compare: an image folder holding an input.
     let t = table(dir.path(), "t.binary", 1.0);
@@ -478,16 +474,7 @@ fn a_signal_mid_write_leaves_no_temporary_file_and_stale_ones_are_cleaned() {
     let stale = format!(".s.csv.npf-{}.q1w2e3.tmp", u32::MAX - 1);
     std::fs::write(dir.path().join(&stale), b"partial").unwrap();
     std::fs::write(dir.path().join(".keep.tmp"), b"not ours").unwrap();
-    let o = npf(&[
-        "sample",
-        s(&m),
-        "--theta-o",
-        "30",
-        "--n",
-        "10",
-        "-o",
-        s(&csv),
-    ]);
+    let o = sample(&m, "10", &["-o", s(&csv)]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(entries(dir.path()), vec![".keep.tmp", "m.json", "s.csv"]);
 }
