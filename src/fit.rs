@@ -173,7 +173,7 @@ pub enum FitError {
         max: usize,
     },
     /// An option outside its documented range (the option's name, the range, the value).
-    #[error("{name} must be {range}, got {value}")]
+    #[error("{name} must be {range}, got {}", short_number(*.value))]
     Range {
         /// The option (library name).
         name: &'static str,
@@ -191,6 +191,15 @@ pub enum FitError {
         /// What cannot be represented.
         problem: String,
     },
+}
+
+/// A number as a user typed it: 1e300, not 300 digits.
+fn short_number(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 impl FitConfig {
