@@ -120,6 +120,26 @@ impl Default for FitConfig {
 /// Fewest and most values per factor table.
 pub const NODES: std::ops::RangeInclusive<usize> = 4..=90;
 
+/// Largest `epsilon` (cosine-weighted 1/sr): above every measured
+/// cosine-weighted value, the compressive weighting is already plain least
+/// squares scaled by 1/epsilon^2; larger floors only underflow the
+/// objective towards 0 (a "converged" fit of nothing).
+pub const MAX_EPSILON: f64 = 1e3;
+
+/// Largest measured value a fit accepts (1/sr). Models store f32 (at most
+/// 3.4e38) and the solver multiplies factors and squares residuals, so data
+/// beyond this cannot be represented; no real BRDF comes near it.
+pub const MAX_SAMPLE_VALUE: f64 = 1e30;
+
+/// Most worker threads per core ([`max_threads`]).
+pub const THREADS_PER_CORE: usize = 4;
+
+/// Largest `threads`: [`THREADS_PER_CORE`] per core of this machine. More
+/// only costs start-up time and memory (results do not depend on it).
+pub fn max_threads() -> usize {
+    THREADS_PER_CORE * std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// Why a fit could not be set up or run. Messages name the problem in the
 /// library's terms; the `npf` program adds its flag names.
 #[derive(Debug, thiserror::Error)]
@@ -144,6 +164,42 @@ pub enum FitError {
     /// The GGX baseline fit failed.
     #[error(transparent)]
     Ggx(#[from] crate::baselines::GgxFitError),
+    /// More threads than [`max_threads`].
+    #[error("at most {max} threads ({THREADS_PER_CORE} per core on this machine; 0 uses every core), got {threads}")]
+    TooManyThreads {
+        /// Threads asked for.
+        threads: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// An option outside its documented range (the option's name, the range, the value).
+    #[error("{name} must be {range}, got {}", short_number(*.value))]
+    Range {
+        /// The option (library name).
+        name: &'static str,
+        /// The accepted range, in words.
+        range: String,
+        /// The value given.
+        value: f64,
+    },
+    /// The data, or the fitted model, cannot be represented in the model's
+    /// storage precision (f32) or gave non-finite measures.
+    #[error("{source_name}: {problem}")]
+    Unrepresentable {
+        /// The samples' source.
+        source_name: String,
+        /// What cannot be represented.
+        problem: String,
+    },
+}
+
+/// A number as a user typed it: 1e300, not 300 digits.
+fn short_number(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 impl FitConfig {
@@ -189,6 +245,37 @@ impl FitConfig {
         if !NODES.contains(&self.nodes) {
             return Err(FitError::Nodes(self.nodes));
         }
+        if self.threads > max_threads() {
+            return Err(FitError::TooManyThreads {
+                threads: self.threads,
+                max: max_threads(),
+            });
+        }
+        if !(self.epsilon > 0.0 && self.epsilon <= MAX_EPSILON) {
+            return Err(FitError::Range {
+                name: "epsilon",
+                range: format!("in (0, {MAX_EPSILON:e}]"),
+                value: self.epsilon,
+            });
+        }
+        for (name, v) in [("max_theta", self.max_theta), ("max_theta_h", self.max_theta_h)] {
+            if !(v > 0.0 && v <= 90.0) {
+                return Err(FitError::Range {
+                    name,
+                    range: "in (0, 90] degrees".into(),
+                    value: v,
+                });
+            }
+        }
+        // A Gaussian wider than the table only averages it, at a cost that
+        // grows with the width.
+        if let Some(sg) = self.smooth_g.filter(|&sg| sg > self.nodes as f64) {
+            return Err(FitError::Range {
+                name: "smooth_g",
+                range: format!("positive and at most the values per table ({})", self.nodes),
+                value: sg,
+            });
+        }
         self.fit_options().validate()?;
         Ok(())
     }
@@ -213,12 +300,54 @@ struct Produced {
     set_len: Option<usize>,
 }
 
+/// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
+fn check_representable(samples: &MeasuredSamples) -> Result<(), FitError> {
+    let big = samples
+        .samples
+        .iter()
+        .flat_map(|s| s.rgb)
+        .find(|v| v.abs() > MAX_SAMPLE_VALUE);
+    match big {
+        Some(v) => Err(FitError::Unrepresentable {
+            source_name: samples.source.clone(),
+            problem: format!(
+                "a measured value of {v:e} 1/sr is beyond what a model can represent (at most {MAX_SAMPLE_VALUE:e}; models store f32)"
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Refuse a result whose model or measures are not finite in f32 (such a
+/// model file could not be read back).
+fn check_result(
+    samples: &MeasuredSamples,
+    result: &FitResult,
+    metrics: &Metrics,
+) -> Result<(), FitError> {
+    let bad = |problem: String| FitError::Unrepresentable {
+        source_name: samples.source.clone(),
+        problem,
+    };
+    if let Err(e) = result.model.validate() {
+        return Err(bad(format!("the fitted model cannot be stored: {e}")));
+    }
+    if !result.objective.is_finite() || !metrics.cos_rmse.is_finite() || !metrics.log_rmse.is_finite() {
+        return Err(bad(format!(
+            "the fit's objective ({:e}) or errors (RMSE {:e}, log RMSE {:e}) are not finite",
+            result.objective, metrics.cos_rmse, metrics.log_rmse
+        )));
+    }
+    Ok(())
+}
+
 fn run_kind(
     samples: &MeasuredSamples,
     config: &FitConfig,
     observer: &mut dyn FnMut(usize, &SweepReport),
 ) -> Result<Produced, FitError> {
     config.validate()?;
+    check_representable(samples)?;
     let layout = config.layout();
     let so = config.sample_options();
     // Both factor kinds are one run of the shared solver; Independent-G is
@@ -315,6 +444,7 @@ pub fn fit(
             set_len,
         } = run_kind(samples, config, observer)?;
         let metrics = compare_model(samples, config.max_theta, &result.model);
+        check_result(samples, &result, &metrics)?;
         let kind = config.model;
         let info = FitInfo {
             source: samples.source.clone(),

@@ -41,6 +41,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    cli::signals::install();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Fit(a) => cli::fit::run(a),

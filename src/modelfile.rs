@@ -21,6 +21,12 @@
 //!
 //! Both forms hold the model's f32 parameters exactly, so writing and
 //! reading gives back the same model bit for bit.
+//!
+//! Bounds: a model file is at most [`MAX_FILE_BYTES`] (checked before it is
+//! read; only regular files are read, so a FIFO or `/dev/zero` is refused),
+//! holds at most [`MAX_LOBES`] lobes and [`MAX_PARAMS`] parameters (checked
+//! from the binary header before the parameters are allocated), and
+//! [`write`] refuses a model or provenance it could not read back.
 
 use crate::grid::{Axis, Grid, PhiAxis};
 use crate::metrics::Metrics;
@@ -40,6 +46,16 @@ const MAGIC: &[u8; 4] = b"NPFB";
 const HEADER_BYTES: usize = 23;
 /// Header bytes of layout kind 1 (grids with a phi axis).
 const HEADER_BYTES_2D: usize = 29;
+
+/// Largest model file read (64 MiB): the default model is 3.3 kB as
+/// `.npfb` and about 40 kB as JSON, a model with [`MAX_PARAMS`] parameters
+/// about 4 MB and 25 MB.
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+/// Most lobes a model file may hold (the solver fits at most 3).
+pub const MAX_LOBES: usize = 8;
+/// Most parameters a model file may hold (2^20; the anisotropic model has
+/// 2,010). Bounds the memory and time of loading and of the sampling tables.
+pub const MAX_PARAMS: usize = 1 << 20;
 
 /// How a model was made (stored in JSON files only).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -219,6 +235,7 @@ pub fn from_json(text: &str, path: &Path) -> Result<ModelFile, ModelFileError> {
         ));
     }
     j.model.validate().map_err(|e| bad_model(path, e))?;
+    check_size(path, j.model.layout, j.model.lobes.len())?;
     Ok(ModelFile {
         model: j.model,
         fit: j.fit,
@@ -318,6 +335,7 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
         f: grids[1],
         g: grids[2],
     };
+    check_size(path, layout, lobes)?;
     let count = LE::read_u32(&bytes[header - 4..header]) as usize;
     let expected = header as u64 + 4 * count as u64;
     if bytes.len() as u64 != expected {
@@ -334,10 +352,70 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
     Model::from_params(layout, lobes, &params).map_err(|e| bad_model(path, e))
 }
 
-/// Read a model file of either form (chosen by extension).
+/// Refuse a layout beyond [`MAX_LOBES`] or [`MAX_PARAMS`].
+fn check_size(path: &Path, layout: Layout, lobes: usize) -> Result<(), ModelFileError> {
+    if lobes > MAX_LOBES {
+        return Err(invalid(
+            path,
+            format!("{lobes} lobes, more than the {MAX_LOBES} a model file may hold"),
+        ));
+    }
+    // Saturating: a crafted header may not overflow the count.
+    let n = |g: Grid| g.n_theta().saturating_mul(g.n_phi().max(1));
+    let params = 3usize
+        .saturating_add(3 * lobes)
+        .saturating_add(lobes.saturating_mul(n(layout.d).saturating_add(n(layout.g))))
+        .saturating_add(3usize.saturating_mul(n(layout.f)));
+    if params > MAX_PARAMS {
+        return Err(invalid(
+            path,
+            format!("the layout has {params} parameters, more than the {MAX_PARAMS} a model file may hold"),
+        ));
+    }
+    Ok(())
+}
+
+/// Read a model file of either form (chosen by extension): a regular file
+/// of at most [`MAX_FILE_BYTES`]; a file of another known kind (a MERL or
+/// UTIA table, a directory...) is named in the error.
 pub fn read(path: &Path) -> Result<ModelFile, ModelFileError> {
     let form = Form::of(path)?;
-    let bytes = std::fs::read(path).map_err(|e| LoadError::io(path, e))?;
+    let what = match form {
+        Form::Json => "an npf model (JSON)",
+        Form::Binary => "an npf binary model (.npfb)",
+    };
+    let bytes = npf_data_loaders::sniff::read_bounded(path, MAX_FILE_BYTES, what).map_err(|e| {
+        match e {
+            // Name what an oversized file is, if it is a known kind (a MERL
+            // table, most likely).
+            LoadError::TooLarge { .. } => match npf_data_loaders::sniff::describe(path) {
+                found if !found.starts_with("a binary file") && !found.starts_with("a text file") => {
+                    LoadError::WrongFormat {
+                        path: path.to_path_buf(),
+                        expected: what,
+                        found,
+                    }
+                }
+                _ => e,
+            },
+            e => e,
+        }
+    })?;
+    let looks_wrong = match form {
+        Form::Json => !bytes.iter().find(|b| !b.is_ascii_whitespace()).is_some_and(|&b| b == b'{'),
+        Form::Binary => !bytes.starts_with(MAGIC),
+    };
+    if looks_wrong && !bytes.is_empty() {
+        let found = npf_data_loaders::sniff::describe(path);
+        if !found.starts_with("a text file") && !found.starts_with("a binary file") {
+            return Err(LoadError::WrongFormat {
+                path: path.to_path_buf(),
+                expected: what,
+                found,
+            }
+            .into());
+        }
+    }
     match form {
         Form::Json => {
             let text = std::str::from_utf8(&bytes).map_err(|_| invalid(path, "not UTF-8 text"))?;
@@ -351,10 +429,27 @@ pub fn read(path: &Path) -> Result<ModelFile, ModelFileError> {
 }
 
 /// Write a model file atomically, in the form its extension names.
+///
+/// Refuses (writing nothing) a model that does not validate (for example
+/// non-finite parameters) or provenance that JSON cannot hold (non-finite
+/// numbers would be written as `null`): the bytes are parsed back first,
+/// so every file written can be read.
 pub fn write(path: &Path, file: &ModelFile, overwrite: bool) -> Result<(), ModelFileError> {
-    let bytes = match Form::of(path)? {
+    file.model.validate().map_err(|e| bad_model(path, e))?;
+    let form = Form::of(path)?;
+    let bytes = match form {
         Form::Json => to_json(file).into_bytes(),
         Form::Binary => to_binary(&file.model),
     };
+    let back = match form {
+        Form::Json => from_json(std::str::from_utf8(&bytes).unwrap_or(""), path).map(|_| ()),
+        Form::Binary => from_binary(&bytes, path).map(|_| ()),
+    };
+    back.map_err(|e| {
+        invalid(
+            path,
+            format!("refusing to write a model file that could not be read back: {e}"),
+        )
+    })?;
     Ok(write_bytes_atomic(path, overwrite, &bytes)?)
 }

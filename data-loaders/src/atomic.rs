@@ -7,9 +7,93 @@
 //! ([`tempfile::NamedTempFile::persist_noclobber`]), so a file that appears
 //! between the check and the rename is not replaced either. On every error the
 //! temporary file is removed.
+//!
+//! A process killed mid-write cannot run that clean-up, so every live
+//! temporary file is also registered ([`remove_live_temps`] deletes them;
+//! the `npf` program calls it from its SIGINT/SIGTERM handler), and its name
+//! carries the writer's process id (`.NAME.npf-PID.XXXXXX.tmp`): a later
+//! write of the same target removes the leftovers of writers that are no
+//! longer running (on Linux, where `/proc` tells).
 
 use std::io::{self, BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Temporary files being written now, in this process.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Deletes every temporary file an unfinished [`write_atomic`] of this
+/// process holds, and returns how many it removed. For a signal handler
+/// about to end the process (the writes themselves then fail or never
+/// finish; their targets are untouched). Also [`register_temp`]'s paths.
+pub fn remove_live_temps() -> usize {
+    // A writer that panicked while holding the lock left a usable list.
+    let live = match LIVE.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    };
+    live.iter().filter(|p| std::fs::remove_file(p).is_ok()).count()
+}
+
+/// The temporary files [`remove_live_temps`] would delete now.
+pub fn live_temps() -> Vec<PathBuf> {
+    LIVE.lock().map(|l| l.clone()).unwrap_or_default()
+}
+
+/// Registers a temporary file made outside [`write_atomic`] for
+/// [`remove_live_temps`]; it stays registered until the guard drops.
+pub fn register_temp(path: &Path) -> TempGuard {
+    if let Ok(mut live) = LIVE.lock() {
+        live.push(path.to_path_buf());
+    }
+    TempGuard(path.to_path_buf())
+}
+
+/// Keeps a path in the live temporary-file list while it exists.
+#[derive(Debug)]
+pub struct TempGuard(PathBuf);
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if let Ok(mut live) = LIVE.lock() {
+            if let Some(i) = live.iter().position(|p| *p == self.0) {
+                live.swap_remove(i);
+            }
+        }
+    }
+}
+
+/// Whether process `pid` still runs (unknown, so assumed running, off Linux).
+fn running(pid: u32) -> bool {
+    if !Path::new("/proc/self").exists() {
+        return true;
+    }
+    Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Removes `dir`'s temporary files for target `name` left by writers that
+/// are no longer running (killed before they could clean up).
+fn remove_stale(dir: &Path, name: &std::ffi::OsStr) {
+    let Some(name) = name.to_str() else { return };
+    let prefix = format!(".{name}.npf-");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file = e.file_name();
+        let Some(f) = file.to_str() else { continue };
+        let Some(rest) = f.strip_prefix(&prefix) else {
+            continue;
+        };
+        if !f.ends_with(".tmp") {
+            continue;
+        }
+        let pid = rest.split('.').next().and_then(|p| p.parse::<u32>().ok());
+        if pid.is_some_and(|p| p != std::process::id() && !running(p)) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
 
 use crate::error::LoadError;
 
@@ -45,9 +129,10 @@ pub fn write_atomic(
     let name = path
         .file_name()
         .ok_or_else(|| io_err(io::Error::other("not a file name")))?;
+    remove_stale(dir, name);
     let mut prefix = std::ffi::OsString::from(".");
     prefix.push(name);
-    prefix.push(".");
+    prefix.push(format!(".npf-{}.", std::process::id()));
 
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
@@ -57,6 +142,7 @@ pub fn write_atomic(
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
     let mut tmp = builder.tempfile_in(dir).map_err(io_err)?;
+    let _live = register_temp(tmp.path());
 
     {
         let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
@@ -146,6 +232,43 @@ mod tests {
         assert_eq!(e.path(), p.as_path());
         assert!(!p.exists());
         assert!(entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn live_temps_are_registered_and_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("out.bin");
+        let e = write_atomic(&p, false, |w| {
+            w.write_all(b"partial")?;
+            // What a signal handler does while the write is under way
+            // (only for this test's file: other tests write concurrently).
+            let mine: Vec<PathBuf> = live_temps()
+                .into_iter()
+                .filter(|t| t.parent() == Some(dir.path()))
+                .collect();
+            assert_eq!(mine.len(), 1);
+            std::fs::remove_file(&mine[0])?;
+            Err(io::Error::other("interrupted"))
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("interrupted"), "{e}");
+        assert!(entries(dir.path()).is_empty());
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn stale_temps_of_dead_writers_are_cleaned() {
+        let dir = tempfile::tempdir().unwrap();
+        // No process has pid u32::MAX - 1 on Linux (pid_max <= 2^22).
+        let stale = dir.path().join(format!(".out.bin.npf-{}.abc123.tmp", u32::MAX - 1));
+        let other = dir.path().join(".other.bin.npf-4294967294.x.tmp");
+        std::fs::write(&stale, b"left by a killed run").unwrap();
+        std::fs::write(&other, b"not ours").unwrap();
+        write_bytes_atomic(&dir.path().join("out.bin"), false, b"x").unwrap();
+        assert_eq!(
+            entries(dir.path()),
+            vec![".other.bin.npf-4294967294.x.tmp", "out.bin"]
+        );
     }
 
     #[cfg(unix)]

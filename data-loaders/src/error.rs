@@ -66,6 +66,37 @@ pub enum LoadError {
         /// What is wrong.
         problem: String,
     },
+    /// The path is not a regular file (a directory, FIFO, device, socket or
+    /// dangling symbolic link): `kind` says which, `expected` what was wanted.
+    #[error("{path}: is {kind}, not {expected}")]
+    NotRegular {
+        /// The path.
+        path: PathBuf,
+        /// What the path is.
+        kind: String,
+        /// What was wanted.
+        expected: &'static str,
+    },
+    /// The file is larger than the format allows (checked before reading).
+    #[error("{path}: {size} bytes, more than the {max} bytes this format allows")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size (bytes).
+        size: u64,
+        /// The format's maximum (bytes).
+        max: u64,
+    },
+    /// The file is another known kind of file than the one expected.
+    #[error("{path}: not {expected}: it looks like {found}")]
+    WrongFormat {
+        /// The file.
+        path: PathBuf,
+        /// What was wanted.
+        expected: &'static str,
+        /// What the file looks like.
+        found: String,
+    },
 }
 
 fn size_problem(expected: u64, actual: u64) -> &'static str {
@@ -110,7 +141,10 @@ impl LoadError {
             | LoadError::BadHeader { path, .. }
             | LoadError::NonFinite { path, .. }
             | LoadError::Exists { path }
-            | LoadError::Invalid { path, .. } => path,
+            | LoadError::Invalid { path, .. }
+            | LoadError::NotRegular { path, .. }
+            | LoadError::TooLarge { path, .. }
+            | LoadError::WrongFormat { path, .. } => path,
         }
     }
 }

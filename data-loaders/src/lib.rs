@@ -14,6 +14,7 @@ pub mod merl;
 mod planar;
 pub mod rgl;
 pub mod samples;
+pub mod sniff;
 pub mod utia;
 
 pub use error::LoadError;

@@ -34,23 +34,41 @@ pub(crate) fn write_f64s(w: &mut dyn Write, values: &[f64]) -> io::Result<()> {
 
 /// Reads a file of exactly `expected` bytes: the size is checked before the
 /// contents are read, and a file that grew meanwhile is reported too long.
+#[allow(dead_code)] // for format modules without a name of their own
 pub(crate) fn read_exact_size(path: &Path, expected: u64) -> Result<Vec<u8>, LoadError> {
+    read_exact_size_as(path, expected, "a file of this format")
+}
+
+/// [`read_exact_size`] for a format named `what` ("a MERL table"): a path
+/// that is not a regular file is refused without being opened for long
+/// ([`crate::sniff::open_regular`]), and a file of the wrong size that is
+/// recognisably something else is [`LoadError::WrongFormat`] naming it.
+pub(crate) fn read_exact_size_as(
+    path: &Path,
+    expected: u64,
+    what: &'static str,
+) -> Result<Vec<u8>, LoadError> {
     use std::io::Read;
     let io = |e| LoadError::io(path, e);
-    let mut file = std::fs::File::open(path).map_err(io)?;
-    let actual = file.metadata().map_err(io)?.len();
+    let (file, actual) = crate::sniff::open_regular(path, what)?;
     if actual != expected {
-        return Err(LoadError::WrongSize {
+        let found = crate::sniff::describe(path);
+        let generic = ["an empty file", "a text file", "a binary file"];
+        if generic.iter().any(|g| found.starts_with(g)) {
+            return Err(LoadError::WrongSize {
+                path: path.to_path_buf(),
+                expected,
+                actual,
+            });
+        }
+        return Err(LoadError::WrongFormat {
             path: path.to_path_buf(),
-            expected,
-            actual,
+            expected: what,
+            found,
         });
     }
     let mut bytes = Vec::with_capacity(expected as usize + 1);
-    (&mut file)
-        .take(expected + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
+    file.take(expected + 1).read_to_end(&mut bytes).map_err(io)?;
     if bytes.len() as u64 != expected {
         return Err(LoadError::WrongSize {
             path: path.to_path_buf(),

@@ -66,7 +66,7 @@ impl UtiaTable {
 
     /// Reads a UTIA `.bin` file; see [`UtiaTable::from_bytes`] for the checks.
     pub fn read(path: &Path) -> Result<Self, LoadError> {
-        let bytes = planar::read_exact_size(path, Self::FILE_BYTES)?;
+        let bytes = planar::read_exact_size_as(path, Self::FILE_BYTES, "a UTIA table (.bin)")?;
         Self::from_bytes(&bytes, path)
     }
 
@@ -350,5 +350,47 @@ mod tests {
             matches!(e, LoadError::WrongSize { actual: 100, .. }),
             "{e:?}"
         );
+    }
+}
+
+/// Property: any mutation of a valid file (bytes overwritten, the file cut
+/// or extended) is refused with a typed error or, if it is still a table,
+/// writes back byte for byte; never a panic.
+#[cfg(test)]
+mod prop {
+    use super::*;
+    use proptest::prelude::*;
+    use std::sync::OnceLock;
+
+    fn valid() -> &'static [u8] {
+        static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+        BYTES.get_or_init(|| {
+            UtiaTable::from_fn(|ti, _, tv, _| (ti < 1.2).then_some([ti + 0.1, tv + 0.2, 0.3])).to_bytes()
+        })
+    }
+
+    proptest! {
+        // A case copies and parses 2 MB: some cases, many mutations each.
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        #[test]
+        fn mutated_tables_are_refused_or_round_trip(
+            edits in proptest::collection::vec((any::<u64>(), any::<u8>()), 0..64),
+            cut in prop_oneof![Just(None), (0u64..64).prop_map(Some)],
+            extend in 0usize..3,
+        ) {
+            let mut b = valid().to_vec();
+            for (at, v) in edits {
+                let i = (at % b.len() as u64) as usize;
+                b[i] = v;
+            }
+            if let Some(c) = cut {
+                b.truncate(b.len() - 1 - c as usize);
+            }
+            b.extend(std::iter::repeat(0u8).take(extend));
+            match UtiaTable::from_bytes(&b, Path::new("p.binary")) {
+                Ok(t) => prop_assert_eq!(t.to_bytes(), b),
+                Err(e) => prop_assert!(e.to_string().starts_with("p.binary: "), "{}", e),
+            }
+        }
     }
 }

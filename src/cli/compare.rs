@@ -4,7 +4,7 @@
 //! sphere renders and their difference as PNG.
 
 use super::png::encode_png;
-use super::{check_output, CliError, CliResult};
+use super::{check_outputs, CliError, CliResult};
 use crate::evaluation::{Evaluation, Reference};
 use crate::modelfile::{self, Form};
 use crate::render::{difference_rgb8, Image, RenderOptions};
@@ -116,9 +116,9 @@ pub fn run(args: CompareArgs) -> CliResult {
                 dir.display()
             )));
         }
-        for n in names {
-            check_output(&dir.join(n), args.force)?;
-        }
+        let outs: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
+        let outs: Vec<&Path> = outs.iter().map(|p| p.as_path()).collect();
+        check_outputs(&outs, &[&args.reference, &args.test], args.force)?;
     }
     let table = MerlTable::read(&args.reference)?;
     let samples = table.samples(&args.reference.display().to_string());

@@ -3,8 +3,8 @@
 //! forms and its reconstruction, and prints the errors.
 
 use super::fit::{fit_with_progress, print_summary, FitFlags};
-use super::{check_output, CliResult};
 use crate::fit::ModelKind;
+use super::{check_outputs, CliError, CliResult};
 use crate::metrics::compare;
 use crate::modelfile::{self, ModelFile};
 use crate::reconstruct::to_merl;
@@ -46,10 +46,19 @@ pub fn run(args: DemoArgs) -> CliResult {
         "ggx-lambert.reconstructed.binary",
     ];
     let paths: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
-    std::fs::create_dir_all(dir).map_err(|e| npf_data_loaders::LoadError::io(dir, e))?;
-    for p in &paths {
-        check_output(p, args.force)?;
+    // Every option first: a refused option must leave nothing behind.
+    let config = args.config.config(ModelKind::Factor);
+    config.validate()?;
+    if dir.exists() && !dir.is_dir() {
+        return Err(CliError::Message(format!(
+            "{}: is {}, not a folder",
+            dir.display(),
+            npf_data_loaders::sniff::describe(dir)
+        )));
     }
+    std::fs::create_dir_all(dir).map_err(|e| npf_data_loaders::LoadError::io(dir, e))?;
+    let outs: Vec<&std::path::Path> = paths.iter().map(|p| p.as_path()).collect();
+    check_outputs(&outs, &[], args.force)?;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}")
@@ -60,15 +69,14 @@ pub fn run(args: DemoArgs) -> CliResult {
         DEMO_BRDF.alpha, DEMO_BRDF.f0, DEMO_BRDF.kd
     ));
     let table = DEMO_BRDF.table();
-    table.write(&paths[0], args.force)?;
     let samples = table.samples(&paths[0].display().to_string());
-    let config = args.config.config(ModelKind::Factor);
-    config.validate()?;
     let fitted = fit_with_progress(&samples, &config, !args.quiet)?;
     let file = ModelFile {
         model: fitted.result.model.clone(),
         fit: Some(fitted.info.clone()),
     };
+    // Written only once the fit succeeded: a failed run leaves nothing.
+    table.write(&paths[0], args.force)?;
     modelfile::write(&paths[1], &file, args.force)?;
     modelfile::write(&paths[2], &file, args.force)?;
     let rec = to_merl(&file.model);

@@ -360,6 +360,32 @@ fn run_furnace(a: FurnaceArgs) -> CliResult {
     Ok(())
 }
 
+/// Most walks per configuration of `energy simulate` and `energy tau`
+/// (about 100 s per core at 100 ns a walk; memory grows with walks / 4096).
+pub const MAX_PATHS: usize = 1_000_000_000;
+/// Most walks of one `energy simulate` or `energy tau` run in all.
+pub const MAX_TOTAL_PATHS: u64 = 10_000_000_000;
+
+fn check_paths(paths: usize, configs: usize, min: usize) -> CliResult {
+    if paths < min {
+        return Err(msg(format!(
+            "--paths: need at least {min} walks for a standard error"
+        )));
+    }
+    if paths > MAX_PATHS {
+        return Err(msg(format!(
+            "--paths {paths}: at most {MAX_PATHS} walks per configuration"
+        )));
+    }
+    let total = paths as u64 * configs as u64;
+    if total > MAX_TOTAL_PATHS {
+        return Err(msg(format!(
+            "--paths {paths} over {configs} configurations is {total} walks: at most {MAX_TOTAL_PATHS} in one run"
+        )));
+    }
+    Ok(())
+}
+
 fn check_unit(name: &str, values: &[f64], lo: f64, hi: f64) -> CliResult {
     if values.is_empty() {
         return Err(msg(format!("--{name}: give at least one value")));
@@ -376,9 +402,7 @@ fn run_simulate(a: SimulateArgs) -> CliResult {
     check_unit("alpha", &a.alpha, 1e-3, 4.0)?;
     check_unit("theta", &a.theta, 0.0, 89.9)?;
     check_unit("reflectance", &a.reflectance, 0.0, 1.0)?;
-    if a.paths < 2 {
-        return Err(msg("--paths: need at least 2 walks for a standard error"));
-    }
+    check_paths(a.paths, a.alpha.len() * a.theta.len(), 2)?;
     if let Some(p) = &a.out.output {
         check_output(p, a.out.force)?;
     }
@@ -442,9 +466,8 @@ fn run_tau(a: TauArgs) -> CliResult {
     if !(1..=64).contains(&a.mu_nodes) {
         return Err(msg("--mu-nodes: must be between 1 and 64"));
     }
-    if a.paths < 2 {
-        return Err(msg("--paths: need at least 2 walks"));
-    }
+    let studies = a.surface.map_or(2, |_| 1) * a.ndf.map_or(2, |_| 1);
+    check_paths(a.paths, studies * a.alpha.len() * a.mu_nodes, 2)?;
     println!("The seed's constants against their own definitions:");
     for c in check_seed_constants() {
         println!(
@@ -536,6 +559,7 @@ fn run_plot(a: PlotArgs) -> CliResult {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         let tmp = path.with_file_name(format!(".{name}.{}.tmp.png", std::process::id()));
+        let _live = npf_data_loaders::atomic::register_temp(&tmp);
         let drawn = plot::png(&tmp, &t, &points)
             .and_then(|_| std::fs::read(&tmp).map_err(|e| e.to_string()));
         let _ = std::fs::remove_file(&tmp);

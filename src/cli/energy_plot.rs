@@ -25,7 +25,9 @@ pub fn register_font(explicit: Option<&std::path::Path>) -> Result<(), String> {
             Err("no TrueType font found in the usual places; pass --font FILE.ttf".into())
         };
     };
-    let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    // A regular file of at most 64 MiB (a FIFO would block, a device never end).
+    let bytes = npf_data_loaders::sniff::read_bounded(p, 64 << 20, "a TrueType font")
+        .map_err(|e| e.to_string())?;
     // plotters keeps fonts for the whole run, so the bytes must live as long.
     let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
     plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)

@@ -12,7 +12,8 @@ pub struct EvalArgs {
     /// Model file (.json or .npfb).
     pub model: PathBuf,
     /// Directions in degrees, four numbers per configuration:
-    /// theta_i phi_i theta_o phi_o [theta_i phi_i theta_o phi_o ...].
+    /// theta_i phi_i theta_o phi_o [theta_i phi_i theta_o phi_o ...];
+    /// theta 0 to 90 (the value at 90, the horizon, is 0).
     #[arg(required = true, num_args = 4.., allow_negative_numbers = true)]
     pub angles: Vec<f64>,
 }
@@ -30,12 +31,27 @@ pub fn run(args: EvalArgs) -> CliResult {
             "angle {v} is not a finite number"
         )));
     }
+    for q in args.angles.chunks(4) {
+        for theta in [q[0], q[2]] {
+            if !(0.0..=90.0).contains(&theta) {
+                return Err(CliError::Message(format!(
+                    "theta {theta}: polar angles must be 0 to 90 degrees (a direction below the horizon is not mirrored)"
+                )));
+            }
+        }
+    }
     let model = modelfile::read(&args.model)?.model;
     println!("theta_i,phi_i,theta_o,phi_o,r,g,b");
     for q in args.angles.chunks(4) {
         let wi = spherical(q[0].to_radians(), q[1].to_radians());
         let wo = spherical(q[2].to_radians(), q[3].to_radians());
-        let v = model.eval(wo, wi);
+        // The convention: zero at the horizon. cos(90 deg) rounds to 6e-17,
+        // not 0, so the model alone would return a (huge) non-zero value.
+        let v = if q[0] >= 90.0 || q[2] >= 90.0 {
+            [0.0; 3]
+        } else {
+            model.eval(wo, wi)
+        };
         println!(
             "{},{},{},{},{:.9e},{:.9e},{:.9e}",
             q[0], q[1], q[2], q[3], v[0], v[1], v[2]

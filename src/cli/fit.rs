@@ -1,6 +1,6 @@
 //! `npf fit IN.binary -o MODEL.{json,npfb}`.
 
-use super::{check_output, CliError, CliResult};
+use super::{check_outputs, CliError, CliResult};
 use crate::fit::{fit, FitConfig, FitError, Fitted, ModelKind};
 use crate::modelfile::{self, ModelFile};
 use crate::samples::Weighting;
@@ -109,8 +109,9 @@ pub fn flag_message(e: &FitError) -> String {
             S::SmoothG(s) => format!("--smooth-g must be positive, got {s}"),
             S::MaskedLobe(_) | S::Start(_) => e.to_string(),
         },
-        FitError::Threads { .. } => format!("--threads: {e}"),
-        FitError::Samples(_) | FitError::Ggx(_) => e.to_string(),
+        FitError::Threads { .. } | FitError::TooManyThreads { .. } => format!("--threads: {e}"),
+        FitError::Range { name, .. } => format!("--{}: {e}", name.replace('_', "-")),
+        FitError::Samples(_) | FitError::Ggx(_) | FitError::Unrepresentable { .. } => e.to_string(),
     }
 }
 
@@ -245,9 +246,9 @@ pub fn load_table(path: &Path) -> Result<MeasuredSamples, CliError> {
 /// Run `npf fit`.
 pub fn run(args: FitArgs) -> CliResult {
     modelfile::Form::of(&args.output)?;
-    check_output(&args.output, args.force)?;
     let config = args.config.config(args.model);
     config.validate()?;
+    check_outputs(&[&args.output], &[&args.input], args.force)?;
     let samples = load_table(&args.input)?;
     let fitted = match (args.target, args.budget) {
         (Some(target), _) => {

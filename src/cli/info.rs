@@ -98,7 +98,8 @@ pub fn run(args: InfoArgs) -> CliResult {
         return Ok(());
     }
     Err(CliError::Message(format!(
-        "{}: not a MERL table (.binary) or an npf model (.json, .npfb)",
-        path.display()
+        "{}: not a MERL table (.binary) or an npf model (.json, .npfb): it is {}",
+        path.display(),
+        npf_data_loaders::sniff::describe(path)
     )))
 }

@@ -1,6 +1,6 @@
 //! `npf reconstruct MODEL -o OUT.binary`: a model as a MERL table.
 
-use super::{check_output, CliResult};
+use super::{check_outputs, CliError, CliResult};
 use crate::modelfile;
 use crate::reconstruct::to_merl;
 use clap::Args;
@@ -11,7 +11,7 @@ use std::path::PathBuf;
 pub struct ReconstructArgs {
     /// Model file (.json or .npfb).
     pub model: PathBuf,
-    /// Output MERL table.
+    /// Output MERL table (must end in .binary).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Overwrite an existing output file.
@@ -21,7 +21,14 @@ pub struct ReconstructArgs {
 
 /// Run `npf reconstruct`.
 pub fn run(args: ReconstructArgs) -> CliResult {
-    check_output(&args.output, args.force)?;
+    let ext = args.output.extension().and_then(|e| e.to_str());
+    if !ext.is_some_and(|e| e.eq_ignore_ascii_case("binary")) {
+        return Err(CliError::Message(format!(
+            "{}: reconstruct writes a MERL table: the output must end in .binary",
+            args.output.display()
+        )));
+    }
+    check_outputs(&[&args.output], &[&args.model], args.force)?;
     let file = modelfile::read(&args.model)?;
     to_merl(&file.model).write(&args.output, args.force)?;
     Ok(())

@@ -6,7 +6,7 @@
 //! a draw below the horizon has pdf and w zero, so the mean of w estimates
 //! the directional albedo. A summary goes to standard error.
 
-use super::{check_output, CliError, CliResult};
+use super::{check_outputs, CliError, CliResult};
 use crate::modelfile;
 use crate::sampling::NpfBxdf;
 use clap::Args;
@@ -142,12 +142,12 @@ pub fn run(args: SampleArgs) -> CliResult {
             args.n
         )));
     }
-    if let Some(out) = &args.output {
-        check_output(out, args.force)?;
-    }
-    if let Some(png) = &args.histogram {
-        check_output(png, args.force)?;
-    }
+    let outs: Vec<&std::path::Path> = [&args.output, &args.histogram]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&outs, &[&args.model], args.force)?;
     let model = modelfile::read(&args.model)?.model;
     let bxdf = NpfBxdf::new(model)
         .map_err(|e| CliError::Message(format!("{}: invalid model: {e}", args.model.display())))?;

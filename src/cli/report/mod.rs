@@ -121,6 +121,7 @@ pub fn run(args: ReportArgs) -> CliResult {
             "--res must be 1 to 4096 and --n-theta 1 to 1024".into(),
         ));
     }
+    crate::cli::check_threads("--jobs", args.jobs)?;
     if args.max_sweeps == Some(0) {
         return Err(CliError::Message("--max-sweeps must be at least 1".into()));
     }
@@ -253,13 +254,25 @@ pub fn run(args: ReportArgs) -> CliResult {
                 };
                 for r in rows.iter_mut().filter(|r| r.material == material.0) {
                     let p = out.join(&r.material).join(format!("{}.json", r.config));
-                    if let Ok(f) = crate::modelfile::read(&p) {
-                        r.eval = Some(
-                            reference
-                                .evaluate_model(max_theta, &f.model)
-                                .map_err(|e| CliError::Message(e.to_string()))?
-                                .0,
-                        );
+                    match crate::modelfile::read(&p) {
+                        Ok(f) => {
+                            r.eval = Some(
+                                reference
+                                    .evaluate_model(max_theta, &f.model)
+                                    .map_err(|e| CliError::Message(e.to_string()))?
+                                    .0,
+                            )
+                        }
+                        // A failed fit has no model; a finished one must
+                        // have one, or its old measures would be reported
+                        // as if recomputed.
+                        Err(e) if r.error.is_none() => {
+                            return Err(CliError::Message(format!(
+                                "--reevaluate: {} {}: cannot read its model: {e}",
+                                r.material, r.config
+                            )))
+                        }
+                        Err(_) => {}
                     }
                 }
                 bar.inc(1);
@@ -333,6 +346,17 @@ pub fn run(args: ReportArgs) -> CliResult {
         &chart_notes,
     );
     write_file(&out.join("report.md"), md.as_bytes())?;
+    // The report is written (it says why each fit failed), but a run in
+    // which nothing succeeded is a failed run.
+    let failed = rows.iter().filter(|r| r.eval.is_none() || markdown::failure(r).is_some()).count();
+    if rows.is_empty() || failed == rows.len() {
+        return Err(CliError::Message(format!(
+            "{}: every fit failed ({failed} of {}): see {}",
+            data_dir.display(),
+            rows.len(),
+            out.join("report.md").display()
+        )));
+    }
     if !args.quiet {
         eprintln!(
             "{} fits in {:.0} s; wrote {}",

@@ -50,8 +50,10 @@ pub fn append(out: &Path, row: &Row, lock: &Mutex<()>) {
 
 /// The rows of a `rows.jsonl` file, in file order (blank lines skipped).
 pub fn read(path: &Path) -> Result<Vec<Row>, CliError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))?;
+    // Bounded: a rows file of 1 GiB would be some 200,000 fits.
+    let bytes = npf_data_loaders::sniff::read_bounded(path, 1 << 30, "a rows.jsonl file")?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| CliError::Message(format!("{}: not UTF-8 text", path.display())))?;
     let mut rows = Vec::new();
     for (k, line) in text
         .lines()
