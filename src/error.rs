@@ -24,6 +24,9 @@ pub enum Error {
     /// A model that breaks its layout's rules.
     #[error(transparent)]
     Model(#[from] crate::model::ModelError),
+    /// A shader or C export that could not be written.
+    #[error(transparent)]
+    Shader(#[from] crate::export::shader::ShaderError),
 }
 
 /// `Result` with the library's [`Error`].

@@ -18,6 +18,7 @@ pub mod cli;
 pub mod energy;
 pub mod error;
 pub mod evaluation;
+pub mod export;
 pub mod fit;
 pub mod golden;
 pub mod grid;

@@ -1,0 +1,3 @@
+//! Exports of a fitted model for renderers.
+
+pub mod shader;
