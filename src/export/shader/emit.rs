@@ -224,22 +224,39 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
         let mut s = String::from(
             "    REAL r0 = 0.0; REAL r1 = 0.0; REAL r2 = 0.0;
     if (wiz > 0.0 && woz > 0.0) {
-        // Rusinkiewicz angles, computed as npf_data_loaders::geometry does.
+        // Rusinkiewicz angles, as npf_data_loaders::geometry computes them.
         REAL hx = wix + wox; REAL hy = wiy + woy; REAL hz = wiz + woz;
         REAL hn = sqrt(hx * hx + hy * hy + hz * hz);
         hx = hx / hn; hy = hy / hn; hz = hz / hn;
-        REAL theta_h = acos(@clampr(hz, -1.0, 1.0)); REAL phi_h = @atan2(hy, hx);
+        REAL theta_h = acos(@clampr(hz, -1.0, 1.0));
+",
+        );
+        // Azimuths only where a 2-D table reads them: the 1-D layouts skip
+        // the trigonometry (theta_d from wi.h, the same angle to rounding).
+        if l.f.is_1d() && l.d.is_1d() {
+            s += "        REAL phi_h = 0.0; REAL phi_d = 0.0;
+        REAL theta_d = acos(@clampr(wix * hx + wiy * hy + wiz * hz, -1.0, 1.0));
+";
+        } else {
+            s += "        REAL phi_h = @atan2(hy, hx);
         REAL sz = sin(-phi_h); REAL cz = cos(-phi_h);
         REAL vx = cz * wix - sz * wiy; REAL vy = sz * wix + cz * wiy; REAL vz = wiz;
         REAL sy = sin(-theta_h); REAL cy = cos(-theta_h);
         REAL dx = cy * vx + sy * vz; REAL dy = vy; REAL dz = -sy * vx + cy * vz;
         REAL theta_d = acos(@clampr(dz, -1.0, 1.0)); REAL phi_d = @atan2(dy, dx);
-        REAL theta_i = acos(@clampr(wiz, -1.0, 1.0)); REAL phi_i = @atan2(wiy, wix);
-        REAL theta_o = acos(@clampr(woz, -1.0, 1.0)); REAL phi_o = @atan2(woy, wox);
-        REAL ci = cos(theta_i); REAL co = cos(theta_o);
+";
+        }
+        s += "        REAL theta_i = acos(@clampr(wiz, -1.0, 1.0));
+        REAL theta_o = acos(@clampr(woz, -1.0, 1.0));
+";
+        s += if l.g.is_1d() {
+            "        REAL phi_i = 0.0; REAL phi_o = 0.0;\n"
+        } else {
+            "        REAL phi_i = @atan2(wiy, wix); REAL phi_o = @atan2(woy, wox);\n"
+        };
+        s += "        REAL ci = cos(theta_i); REAL co = cos(theta_o);
         if (ci > 0.0 && co > 0.0) {
-",
-        );
+";
         for c in 0..3 {
             let _ = writeln!(s, "            REAL f{c} = @f({}, theta_d, phi_d);", c * nf);
         }
