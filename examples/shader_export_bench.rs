@@ -44,13 +44,29 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Model::eval calls per second on the C benchmark's direction pairs.
+fn rust_evals_per_second(model: &Model) -> f64 {
+    let dirs: Vec<[f64; 3]> = (0..64)
+        .map(|k| npf::loaders::geometry::spherical(1.5 * (k % 8) as f64 / 8.0, 0.8 * k as f64))
+        .collect();
+    let n = 2_000_000;
+    let t = Instant::now();
+    let mut sink = 0.0;
+    for k in 0..n {
+        sink += model.eval(dirs[k & 63], dirs[(k * 7 + 3) & 63])[1];
+    }
+    std::hint::black_box(sink);
+    n as f64 / t.elapsed().as_secs_f64()
+}
+
 fn main() {
     let alphas = [0.05, 0.2, 0.5];
     let iso = npf::synth::known_factor_model(Layout::default(), &alphas);
     let aniso = {
         let layout = Layout::anisotropic();
         let iso = npf::synth::known_factor_model(Layout::default(), &alphas);
-        let ggx = |grid: npf::grid::Grid, f: &dyn Fn(f64) -> f64| npf::microfacet::tabulate(grid, f);
+        let ggx =
+            |grid: npf::grid::Grid, f: &dyn Fn(f64) -> f64| npf::microfacet::tabulate(grid, f);
         Model {
             layout,
             diffuse: iso.diffuse,
@@ -74,7 +90,10 @@ fn main() {
         (".glsl", shader::glsl),
         (".h", shader::c_header),
     ];
-    for (name, model) in [("isotropic, 3 lobes", &iso), ("anisotropic, 3 lobes", &aniso)] {
+    for (name, model) in [
+        ("isotropic, 3 lobes", &iso),
+        ("anisotropic, 3 lobes", &aniso),
+    ] {
         for (ext, f) in formats {
             let mut times = Vec::new();
             let mut bytes = 0;
@@ -91,10 +110,14 @@ fn main() {
         }
     }
     let dir = tempfile::tempdir().unwrap();
-    println!("\nC header, cc -O2, one core (M calls/s; median of 5 runs):\n");
-    println!("| model | eval | pdf | sample (incl. eval and pdf) |");
-    println!("|---|---|---|---|");
-    for (name, model) in [("isotropic, 3 lobes", &iso), ("anisotropic, 3 lobes", &aniso)] {
+    println!("\nC header, cc -O2, one core (M calls/s; median of 5 runs), next to");
+    println!("npf's own Model::eval on the same direction pairs in the same run:\n");
+    println!("| model | Rust Model::eval | C eval | C pdf | C sample (incl. eval and pdf) |");
+    println!("|---|---|---|---|---|");
+    for (name, model) in [
+        ("isotropic, 3 lobes", &iso),
+        ("anisotropic, 3 lobes", &aniso),
+    ] {
         std::fs::write(dir.path().join("model.h"), shader::c_header(model).unwrap()).unwrap();
         std::fs::write(dir.path().join("bench.c"), C_BENCH).unwrap();
         let exe = dir.path().join("bench");
@@ -120,6 +143,12 @@ fn main() {
             })
             .collect();
         let col = |i: usize| median(runs.iter().map(|r| r[i]).collect());
-        println!("| {name} | {:.1} | {:.1} | {:.1} |", col(0), col(1), col(2));
+        let rust = median((0..5).map(|_| rust_evals_per_second(model) / 1e6).collect());
+        println!(
+            "| {name} | {rust:.1} | {:.1} | {:.1} | {:.1} |",
+            col(0),
+            col(1),
+            col(2)
+        );
     }
 }
