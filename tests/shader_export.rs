@@ -419,32 +419,34 @@ fn parse_brdf(text: &str) -> (Vec<(String, String)>, String) {
 
 #[test]
 fn brdf_explorer_file_follows_the_format_and_compiles() {
-    let model = isotropic();
-    let text = shader::brdf_explorer(&model).unwrap();
-    let (params, code) = parse_brdf(&text);
-    assert!(code.contains("vec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)"));
-    assert_eq!(
-        params.len(),
-        2 + model.lobe_count(),
-        "exposure, diffuse, one switch per lobe"
-    );
-    if !have(
+    let tools = have(
         "glslangValidator",
         "brdf_explorer_file_follows_the_format_and_compiles",
-    ) {
-        return;
-    }
-    // BRDF Explorer's templates: #version 410, its own uniforms (exposure
-    // among them), then the parameters as uniforms, then the shader.
-    let uniforms: String = params
-        .iter()
-        .map(|(t, n)| {
-            let ty = if t == "color" { "vec3" } else { t.as_str() };
-            format!("uniform {ty} {n};\n")
-        })
-        .collect();
-    let frag = format!(
-        "#version 410
+    );
+    let dir = tempfile::tempdir().unwrap();
+    for (name, model) in [("isotropic", isotropic()), ("anisotropic", anisotropic())] {
+        let text = shader::brdf_explorer(&model).unwrap();
+        let (params, code) = parse_brdf(&text);
+        assert!(code.contains("vec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)"));
+        assert_eq!(
+            params.len(),
+            2 + model.lobe_count(),
+            "exposure, diffuse, one switch per lobe"
+        );
+        if !tools {
+            continue;
+        }
+        // BRDF Explorer's templates: #version 410, its own uniforms (exposure
+        // among them), then the parameters as uniforms, then the shader.
+        let uniforms: String = params
+            .iter()
+            .map(|(t, n)| {
+                let ty = if t == "color" { "vec3" } else { t.as_str() };
+                format!("uniform {ty} {n};\n")
+            })
+            .collect();
+        let frag = format!(
+            "#version 410
 uniform float exposure; uniform float gamma; uniform float brightness;
 {uniforms}{code}
 uniform vec3 L; uniform vec3 V;
@@ -453,9 +455,9 @@ void main() {{
     color = vec4(BRDF(L, V, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)), exposure);
 }}
 "
-    );
-    let dir = tempfile::tempdir().unwrap();
-    validate_glsl(&frag, dir.path(), "brdf_explorer");
+        );
+        validate_glsl(&frag, dir.path(), &format!("brdf_explorer_{name}"));
+    }
 }
 
 #[test]

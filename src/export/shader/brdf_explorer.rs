@@ -25,7 +25,7 @@ pub fn brdf_explorer_with(model: &Model, options: &ShaderOptions) -> Result<Stri
     }
     s += "::end parameters\n\n::begin shader\n";
     s += &banner(model, "BRDF Explorer shader of an npf fit");
-    s += &src.tables();
+    s += &src.tables(false);
     s += &src.helpers();
     s += &src.lookups();
     let diffuse_on = format!("{p}_diffuse");

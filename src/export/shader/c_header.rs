@@ -23,7 +23,7 @@ pub fn c_header_with(model: &Model, options: &ShaderOptions) -> Result<String, S
         .collect::<String>();
     let mut s = banner;
     s += &format!("#ifndef {guard}\n#define {guard}\n\n#include <math.h>\n\n");
-    s += &src.tables();
+    s += &src.tables(true);
     s += &src.helpers();
     s += &src.lookups();
     s += &src.fill(

@@ -92,8 +92,9 @@ impl<'a> Source<'a> {
         }
     }
 
-    /// Every table: factors as the model stores them, then the sampler's.
-    pub(super) fn tables(&self) -> String {
+    /// Every table: factors as the model stores them, then (when
+    /// `with_sampler`) the sampler's.
+    pub(super) fn tables(&self, with_sampler: bool) -> String {
         let m = self.model;
         let cat = |f: &dyn Fn(&crate::model::Lobe) -> &Vec<f32>| -> Vec<f32> {
             m.lobes.iter().flat_map(|l| f(l).iter().copied()).collect()
@@ -105,12 +106,15 @@ impl<'a> Source<'a> {
         s += &self.array("@D", &cat(&|l| &l.d));
         s += &self.array("@G", &cat(&|l| &l.g));
         s += &self.array("@F", &fresnel);
-        s += "// Sampler: cell edges in t = sin^2 theta_h, each lobe's cdf at the\n";
-        s +=
-            &format!("// edges, component probabilities at {VIEWS} view angles (diffuse first).\n");
-        s += &self.array("@EDGES", &self.tables.edges);
-        s += &self.array("@CDF", &self.tables.cdf);
-        s += &self.array("@SEL", &self.tables.selection);
+        if with_sampler {
+            s += "// Sampler: cell edges in t = sin^2 theta_h, each lobe's cdf at the\n";
+            s += &format!(
+                "// edges, component probabilities at {VIEWS} view angles (diffuse first).\n"
+            );
+            s += &self.array("@EDGES", &self.tables.edges);
+            s += &self.array("@CDF", &self.tables.cdf);
+            s += &self.array("@SEL", &self.tables.selection);
+        }
         s
     }
 
