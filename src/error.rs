@@ -36,6 +36,9 @@ pub enum Error {
     /// The GGX baseline fit failed.
     #[error(transparent)]
     Ggx(#[from] crate::baselines::GgxFitError),
+    /// A shader or C export that could not be written.
+    #[error(transparent)]
+    Shader(#[from] crate::export::shader::ShaderError),
 }
 
 /// `Result` with the library's [`Error`].

@@ -1,7 +1,7 @@
 //! `npf export MODEL -o OUT`: a model in a renderer's format, chosen by
 //! OUT's extension (`.bsdf`, `.binary`; see docs/export.md).
 
-use super::{check_output, CliError, CliResult};
+use super::{check_outputs, CliError, CliResult};
 use crate::export::{export, ExportError, ExportOptions, Format, RglOptions};
 use crate::modelfile;
 use clap::Args;
@@ -48,7 +48,7 @@ pub struct ExportArgs {
 /// Run `npf export`.
 pub fn run(args: ExportArgs) -> CliResult {
     let flag = |e: ExportError| match e {
-        ExportError::UnknownFormat(_) | ExportError::Unsupported(_) => {
+        ExportError::UnknownFormat(_) => {
             CliError::Message(format!("{}: {e}", args.output.display()))
         }
         ExportError::Option(m) => CliError::Message(
@@ -77,15 +77,9 @@ pub fn run(args: ExportArgs) -> CliResult {
         ));
     }
     // Never overwrite the input, even with --force.
-    if let (Ok(a), Ok(b)) = (args.model.canonicalize(), args.output.canonicalize()) {
-        if a == b {
-            return Err(CliError::Message(format!(
-                "{}: is the input model; refusing to overwrite it",
-                args.output.display()
-            )));
-        }
-    }
-    check_output(&args.output, args.force)?;
+    // Refuses an output that is the input under any name (links, `..`),
+    // a directory, a special file, or an existing file without --force.
+    check_outputs(&[&args.output], &[&args.model], args.force)?;
     let model = modelfile::read(&args.model)?.model;
     let start = Instant::now();
     let bytes = export(&model, &args.output, &opts, args.force).map_err(|e| match e {

@@ -4,13 +4,14 @@
 //! - `.bsdf`: the RGL tensor file of Mitsuba 3's `measured` plugin and
 //!   pbrt-v4's `MeasuredBxDF` ([`rgl`]);
 //! - `.binary`: the MERL table ([`crate::reconstruct::to_merl`]);
-//! - `.brdf`, `.glsl`, `.h`: shader and header exports (not built yet:
-//!   [`ExportError::Unsupported`]).
+//! - `.brdf`, `.glsl`, `.h`: a BRDF Explorer analytic file, a standalone
+//!   GLSL function and a dependency-free C header ([`shader`]).
 //!
 //! Every file is written atomically, and never over an existing file
 //! unless asked to.
 
 pub mod rgl;
+pub mod shader;
 
 use crate::model::Model;
 use npf_data_loaders::LoadError;
@@ -39,9 +40,9 @@ pub enum ExportError {
     /// The extension names no export format.
     #[error("unknown export format {0:?} (use .bsdf, .binary, .brdf, .glsl or .h)")]
     UnknownFormat(String),
-    /// A format npf knows but does not write yet.
-    #[error("export to .{0} is not supported yet")]
-    Unsupported(String),
+    /// A shader or header export failed.
+    #[error(transparent)]
+    Shader(#[from] shader::ShaderError),
     /// An option out of range.
     #[error("{0}")]
     Option(String),
@@ -97,10 +98,16 @@ pub fn export(
             crate::reconstruct::to_merl(model).write(path, overwrite)?;
             Ok(npf_data_loaders::MerlTable::FILE_BYTES)
         }
-        Format::BrdfExplorer => Err(ExportError::Unsupported("brdf".into())),
-        Format::Glsl => Err(ExportError::Unsupported("glsl".into())),
-        Format::CHeader => Err(ExportError::Unsupported("h".into())),
+        Format::BrdfExplorer => write_text(path, &shader::brdf_explorer(model)?, overwrite),
+        Format::Glsl => write_text(path, &shader::glsl(model)?, overwrite),
+        Format::CHeader => write_text(path, &shader::c_header(model)?, overwrite),
     }
+}
+
+/// Writes generated source text atomically; returns its size in bytes.
+fn write_text(path: &Path, text: &str, overwrite: bool) -> Result<u64, ExportError> {
+    npf_data_loaders::atomic::write_bytes_atomic(path, overwrite, text.as_bytes())?;
+    Ok(text.len() as u64)
 }
 
 #[cfg(test)]
@@ -238,16 +245,31 @@ mod tests {
     }
 
     #[test]
+    fn shader_formats_write_their_generators_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let iso = known_factor_model(Layout::isotropic(90), &[0.2]);
+        for (name, text) in [
+            ("m.brdf", shader::brdf_explorer(&iso).unwrap()),
+            ("m.glsl", shader::glsl(&iso).unwrap()),
+            ("m.h", shader::c_header(&iso).unwrap()),
+        ] {
+            let path = dir.path().join(name);
+            let size = export(&iso, &path, &small(), false).unwrap();
+            assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
+            assert_eq!(size, text.len() as u64);
+            // Never over an existing file unless asked to.
+            assert!(export(&iso, &path, &small(), false).is_err());
+        }
+    }
+
+    #[test]
     fn refusals_leave_no_file() {
         let dir = tempfile::tempdir().unwrap();
         let iso = known_factor_model(Layout::isotropic(90), &[0.2]);
-        for (name, want) in [("m.brdf", "brdf"), ("m.glsl", "glsl"), ("m.h", "h")] {
-            let e = export(&iso, &dir.path().join(name), &small(), false).unwrap_err();
-            assert!(
-                matches!(&e, ExportError::Unsupported(x) if x == want),
-                "{e}"
-            );
-        }
+        assert!(matches!(
+            export(&iso, &dir.path().join("m.txt"), &small(), false),
+            Err(ExportError::UnknownFormat(_))
+        ));
         let mut bad = small();
         bad.rgl.samples = 1;
         assert!(matches!(
