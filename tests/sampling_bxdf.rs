@@ -4,7 +4,7 @@
 //! sampler tests), and the Monte Carlo weight `sample` returns.
 
 use npf::model::{Layout, Model};
-use npf::sampling::{Component, NpfBxdf};
+use npf::sampling::{Component, NpfBxdf, PHI_CELLS};
 use npf::synth::known_factor_model;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -176,11 +176,26 @@ fn integrate_pdf_h(b: &NpfBxdf, wo: Vec3, edges: &[f64], p0: f64, p1: f64) -> f6
             if hi <= lo {
                 continue;
             }
-            let panels = 3;
-            let ph_w = (hi - lo) / panels as f64;
+            // Panels break where the sampler's azimuth cells do (its pdf
+            // jumps there), three per piece.
+            let mut breaks = vec![lo];
+            let cell = PI / PHI_CELLS as f64;
+            for k in -(PHI_CELLS as i64)..=(PHI_CELLS as i64) {
+                let x = k as f64 * cell;
+                if x > lo && x < hi {
+                    breaks.push(x);
+                }
+            }
+            breaks.push(hi);
+            let pieces: Vec<(f64, f64)> = breaks
+                .windows(2)
+                .flat_map(|w| {
+                    let step = (w[1] - w[0]) / 3.0;
+                    (0..3).map(move |k| (w[0] + k as f64 * step, w[0] + (k + 1) as f64 * step))
+                })
+                .collect();
             let mut inner = 0.0;
-            for k in 0..panels {
-                let (a, c) = (lo + k as f64 * ph_w, lo + (k + 1) as f64 * ph_w);
+            for (a, c) in pieces {
                 for (xp, wp) in GL_X.iter().zip(GL_W) {
                     let ph = 0.5 * (a + c) + 0.5 * (c - a) * xp;
                     let wi = wi_of(wo0, th, ph);
