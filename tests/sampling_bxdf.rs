@@ -30,6 +30,14 @@ fn diffuse_only() -> Model {
     m
 }
 
+/// One lobe of the three-lobe model alone (no diffuse term): the mixture is
+/// then that single component.
+fn lobe_only(alpha: f64) -> Model {
+    let mut m = known_factor_model(Layout::default(), &[alpha]);
+    m.diffuse = [0.0; 3];
+    m
+}
+
 fn models() -> Vec<(&'static str, NpfBxdf)> {
     vec![
         ("specular", NpfBxdf::new(specular()).unwrap()),
@@ -551,6 +559,64 @@ fn chi_square_sample_matches_pdf() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn chi_square_each_component_matches_its_pdf() {
+    // Each lobe component alone (its view table at the nearest view node,
+    // between nodes too: 40 and 70 degrees are off the 5.93-degree grid);
+    // the diffuse component alone is the "diffuse" model above.
+    let views = [0.0, 40.0, 70.0, 87.0];
+    let lobes = [0.02, 0.15, 0.5];
+    let tests = lobes.len() * views.len();
+    let alpha = 1.0 - (1.0 - 0.01f64).powf(1.0 / tests as f64);
+    let mut failures = Vec::new();
+    for (i, &a) in lobes.iter().enumerate() {
+        let b = NpfBxdf::new(lobe_only(a)).unwrap();
+        assert_eq!(b.selection_probabilities(wo_at(10.0))[0], 0.0);
+        for (j, &theta_o) in views.iter().enumerate() {
+            let p = chi2_p_value(&b, wo_at(theta_o), 200_000, 300 + (i * 10 + j) as u64);
+            eprintln!("chi2 lobe {a:5} theta_o {theta_o:4}: p = {p:.4}");
+            if p.is_nan() || p <= alpha {
+                failures.push(format!("lobe {a} at {theta_o} deg: p = {p:.3e} < {alpha:.3e}"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn isotropic_eval_matches_the_full_angle_map() {
+    // Model::eval skips the azimuths for isotropic tables; the value must be
+    // eval_angles at the full Rusinkiewicz angles, to rounding.
+    let m = three_lobes();
+    let mut rng = Pcg64::seed_from_u64(11);
+    let mut worst = 0.0f64;
+    for _ in 0..20_000 {
+        let wo = spherical(rng.gen::<f64>() * 1.55, rng.gen::<f64>() * 2.0 * PI);
+        let wi = if rng.gen::<bool>() {
+            // Near the mirror direction, where the specular lobe is.
+            let r = [-wo[0], -wo[1], wo[2]];
+            let d = [rng.gen::<f64>() - 0.5, rng.gen::<f64>() - 0.5, rng.gen::<f64>() - 0.5];
+            let e = 0.02 * rng.gen::<f64>();
+            let v = [r[0] + e * d[0], r[1] + e * d[1], r[2] + e * d[2]];
+            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            [v[0] / n, v[1] / n, v[2] / n]
+        } else {
+            spherical(rng.gen::<f64>() * 1.55, rng.gen::<f64>() * 2.0 * PI)
+        };
+        if wi[2] <= 0.0 {
+            continue;
+        }
+        let fast = m.eval(wo, wi);
+        let full = m.eval_angles(&npf_data_loaders::geometry::Angles::from_directions(wi, wo));
+        for c in 0..3 {
+            let rel = (fast[c] - full[c]).abs() / full[c].abs().max(1e-300);
+            worst = worst.max(if full[c] == 0.0 { fast[c].abs() } else { rel });
+        }
+    }
+    eprintln!("fast vs full angle map: largest relative difference {worst:e}");
+    assert!(worst < 1e-9, "largest relative difference {worst:e}");
 }
 
 #[test]
