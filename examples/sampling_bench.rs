@@ -344,7 +344,7 @@ fn plot(results: &[MaterialResult], path: &std::path::Path) -> Result<(), String
             .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
         let mut chart = ChartBuilder::on(&root)
             .caption(
-                "Relative RMSE of outgoing radiance vs samples per pixel (solid: D sampling, dashed: cosine)",
+                "Relative RMSE of outgoing radiance vs samples per pixel (solid: npf sampling, dashed: cosine)",
                 ("sans-serif", 18),
             )
             .margin(12)
@@ -612,7 +612,7 @@ fn report(results: &[MaterialResult], speeds: &[Throughput], args: &[String]) ->
     );
     let _ = writeln!(
         s,
-        "{} pixels, max(64, 2^16/N) independent runs per N and method; relative RMSE = RMS error over pixels, runs and RGB channels divided by the mean reference radiance. Reference: the D sampler with 2^20 samples per pixel (another seed).\n",
+        "{} pixels, max(64, 2^16/N) independent runs per N and method; relative RMSE = RMS error over pixels, runs and RGB channels divided by the mean reference radiance. Reference: the npf sampler with 2^20 samples per pixel (another seed).\n",
         PIXELS.len()
     );
     let mut head = "| material | method |".to_string();
@@ -623,7 +623,7 @@ fn report(results: &[MaterialResult], speeds: &[Throughput], args: &[String]) ->
     }
     let _ = writeln!(s, "{head}\n{rule}");
     for r in results {
-        for (label, v) in [("D sampling", &r.ours), ("cosine", &r.cosine)] {
+        for (label, v) in [("npf sampling", &r.ours), ("cosine", &r.cosine)] {
             let _ = write!(s, "| {} | {label} |", r.name);
             for e in v.iter() {
                 let _ = write!(s, " {e:.3e} |");
@@ -633,7 +633,7 @@ fn report(results: &[MaterialResult], speeds: &[Throughput], args: &[String]) ->
     }
     let _ = writeln!(
         s,
-        "\n| material | variance ratio cosine/D | same, BRDF weight only | cosine N matching D at N=128 | D RMSE at 128 | cosine RMSE at 4096 | target (D@128 <= cosine@4096) | reference rel. s.e. | tables (bytes) |"
+        "\n| material | variance ratio cosine/npf | same, BRDF weight only | cosine N matching npf at N=128 | npf RMSE at 128 | cosine RMSE at 4096 | target (npf@128 <= cosine@4096) | reference rel. s.e. | tables (bytes) |"
     );
     let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---|---:|---:|");
     let i128 = NS.iter().position(|&n| n == 128).unwrap();
