@@ -16,6 +16,7 @@
 
 use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
+use rayon::prelude::*;
 use crate::sampling::{PiecewiseConstant, PiecewiseConstant2D};
 use npf_data_loaders::geometry::{Angles, Vec3};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -583,8 +584,9 @@ fn lobe_tables(model: &Model, m: usize, edges: &[f64]) -> Option<Vec<PiecewiseCo
         return None;
     }
     let shaped = g_max > 0.0 && f_max > 0.0;
-    let mut tables = Vec::with_capacity(VIEW_NODES);
-    for k in 0..VIEW_NODES {
+    // Views are independent: build them in parallel (each table is the
+    // same whatever the thread count).
+    let view_table = |k: usize| -> Option<PiecewiseConstant2D> {
         let (sin_o, cos_o) = view_angle(k).sin_cos();
         let mut mass = vec![0.0; nx * PHI_CELLS];
         if shaped {
@@ -636,9 +638,9 @@ fn lobe_tables(model: &Model, m: usize, edges: &[f64]) -> Option<Vec<PiecewiseCo
                 *v = 0.0;
             }
         }
-        tables.push(PiecewiseConstant2D::new(edges.to_vec(), PHI_CELLS, PI, &mass)?);
-    }
-    Some(tables)
+        PiecewiseConstant2D::new(edges.to_vec(), PHI_CELLS, PI, &mass)
+    };
+    (0..VIEW_NODES).into_par_iter().map(view_table).collect()
 }
 
 /// The largest |G(theta_i) G(theta_o)| over the configurations with half
