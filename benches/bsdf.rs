@@ -56,7 +56,10 @@ fn now_ns() -> u64 {
         }
     }
     static START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
-    START.get_or_init(std::time::Instant::now).elapsed().as_nanos() as u64
+    START
+        .get_or_init(std::time::Instant::now)
+        .elapsed()
+        .as_nanos() as u64
 }
 
 /// Criterion measurement on [`now_ns`].
@@ -79,9 +82,9 @@ impl ValueFormatter for NsFormatter {
 
     fn scale_throughputs(&self, _typical: f64, t: &Throughput, values: &mut [f64]) -> &'static str {
         let n = match *t {
-            Throughput::Bytes(n)
-            | Throughput::BytesDecimal(n)
-            | Throughput::Elements(n) => n as f64,
+            Throughput::Bytes(n) | Throughput::BytesDecimal(n) | Throughput::Elements(n) => {
+                n as f64
+            }
         };
         // ns per batch -> million elements per second.
         values.iter_mut().for_each(|v| *v = n * 1e3 / *v);
@@ -120,10 +123,15 @@ impl Measurement for CpuTime {
 fn bench(c: &mut Criterion<CpuTime>) {
     let b = NpfBxdf::new(model()).expect("a valid model");
     let mut rng = Pcg64::seed_from_u64(1);
-    let us: Vec<[f64; 3]> = (0..BATCH).map(|_| [rng.gen(), rng.gen(), rng.gen()]).collect();
+    let us: Vec<[f64; 3]> = (0..BATCH)
+        .map(|_| [rng.gen(), rng.gen(), rng.gen()])
+        .collect();
     let wos: Vec<[f64; 3]> = (0..BATCH)
         .map(|_| {
-            let (t, p) = (rng.gen::<f64>() * 80f64.to_radians(), rng.gen::<f64>() * 6.283);
+            let (t, p) = (
+                rng.gen::<f64>() * 80f64.to_radians(),
+                rng.gen::<f64>() * std::f64::consts::TAU,
+            );
             [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
         })
         .collect();

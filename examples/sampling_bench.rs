@@ -512,7 +512,12 @@ fn angles_main(args: &[String]) -> Result<(), String> {
             let st = t.to_radians().sin();
             let px = Pixel::new([st * 0.7f64.cos(), st * 0.7f64.sin()]);
             let (env, white) = single_sample_variances(&b, &px, &mut rng);
-            let _ = write!(s, " {} | {} |", ratio(env[1] / env[0]), ratio(white[1] / white[0]));
+            let _ = write!(
+                s,
+                " {} | {} |",
+                ratio(env[1] / env[0]),
+                ratio(white[1] / white[0])
+            );
         }
         let p = b.selection_probabilities([0.0, 0.0, 1.0]);
         let _ = writeln!(s, " {:.2} |", 1.0 - p[0]);

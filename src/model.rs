@@ -335,7 +335,13 @@ impl Model {
     /// [`Model::lobe_terms`] with the cosines of theta_i and theta_o given
     /// (both positive).
     #[inline]
-    fn terms_with_cosines(&self, a: &Angles, ci: f64, co: f64, mut term: impl FnMut(usize, [f64; 3])) {
+    fn terms_with_cosines(
+        &self,
+        a: &Angles,
+        ci: f64,
+        co: f64,
+        mut term: impl FnMut(usize, [f64; 3]),
+    ) {
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
         let (gis, gos) = (

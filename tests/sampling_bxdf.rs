@@ -578,7 +578,9 @@ fn chi_square_each_component_matches_its_pdf() {
             let p = chi2_p_value(&b, wo_at(theta_o), 200_000, 300 + (i * 10 + j) as u64);
             eprintln!("chi2 lobe {a:5} theta_o {theta_o:4}: p = {p:.4}");
             if p.is_nan() || p <= alpha {
-                failures.push(format!("lobe {a} at {theta_o} deg: p = {p:.3e} < {alpha:.3e}"));
+                failures.push(format!(
+                    "lobe {a} at {theta_o} deg: p = {p:.3e} < {alpha:.3e}"
+                ));
             }
         }
     }
@@ -597,7 +599,11 @@ fn isotropic_eval_matches_the_full_angle_map() {
         let wi = if rng.gen::<bool>() {
             // Near the mirror direction, where the specular lobe is.
             let r = [-wo[0], -wo[1], wo[2]];
-            let d = [rng.gen::<f64>() - 0.5, rng.gen::<f64>() - 0.5, rng.gen::<f64>() - 0.5];
+            let d = [
+                rng.gen::<f64>() - 0.5,
+                rng.gen::<f64>() - 0.5,
+                rng.gen::<f64>() - 0.5,
+            ];
             let e = 0.02 * rng.gen::<f64>();
             let v = [r[0] + e * d[0], r[1] + e * d[1], r[2] + e * d[2]];
             let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();

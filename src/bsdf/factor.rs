@@ -16,9 +16,9 @@
 
 use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
-use rayon::prelude::*;
 use crate::sampling::{PiecewiseConstant, PiecewiseConstant2D};
 use npf_data_loaders::geometry::{Angles, Vec3};
+use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Sub-cells per D-axis interval in the half-vector tables: 4 x 90 = 360
@@ -289,7 +289,7 @@ impl NpfBxdf {
         }
         // One cell lookup serves every lobe: they share the edges.
         let n = self.edges.len() - 1;
-        if !(t >= 0.0 && t < 1.0) {
+        if !(0.0..1.0).contains(&t) {
             return pdf;
         }
         let i = (self.edges.partition_point(|&e| e <= t) - 1).min(n - 1);
@@ -493,11 +493,7 @@ fn sample_half_vector(table: &PiecewiseConstant2D, wo: Vec3, u: [f64; 2]) -> Vec
     let (sp, cp) = phi.sin_cos();
     let (hx, hy) = (sin_h * cp, sign * sin_h * sp);
     let (ex, ey) = azimuth_frame(wo);
-    [
-        hx * ex[0] + hy * ey[0],
-        hx * ex[1] + hy * ey[1],
-        cos_h,
-    ]
+    [hx * ex[0] + hy * ey[0], hx * ex[1] + hy * ey[1], cos_h]
 }
 
 /// Cells whose mass is below this fraction of the lobe's total get none:
@@ -541,7 +537,11 @@ const PHI_GAUSS: usize = 2;
 /// exactly what sample draws, whatever the quadrature's accuracy.
 fn lobe_tables(model: &Model, m: usize, edges: &[f64]) -> Option<Vec<PiecewiseConstant2D>> {
     let lobe = &model.lobes[m];
-    let (d_axis, g_axis, f_axis) = (model.layout.d.theta, model.layout.g.theta, model.layout.f.theta);
+    let (d_axis, g_axis, f_axis) = (
+        model.layout.d.theta,
+        model.layout.g.theta,
+        model.layout.f.theta,
+    );
     if edges.len() < 2 {
         return None;
     }
@@ -574,11 +574,20 @@ fn lobe_tables(model: &Model, m: usize, edges: &[f64]) -> Option<Vec<PiecewiseCo
             let theta = t.sqrt().min(1.0).asin();
             let d = d_axis.stencil(theta).apply_f32(&lobe.d).max(0.0);
             let db = d * (bound(theta) / b_max).min(1.0);
-            points.push((0.5 * (b - a) * wt, d, db, t.sqrt(), (1.0 - t).max(0.0).sqrt()));
+            points.push((
+                0.5 * (b - a) * wt,
+                d,
+                db,
+                t.sqrt(),
+                (1.0 - t).max(0.0).sqrt(),
+            ));
         }
     }
     // The view-independent coverage part (per cell; uniform in phi).
-    let cover: Vec<f64> = points.chunks(4).map(|p| p.iter().map(|q| q.0 * q.2).sum()).collect();
+    let cover: Vec<f64> = points
+        .chunks(4)
+        .map(|p| p.iter().map(|q| q.0 * q.2).sum())
+        .collect();
     let cover_total: f64 = cover.iter().sum();
     if !(cover_total > 0.0 && cover_total.is_finite()) {
         return None;
@@ -734,7 +743,10 @@ mod tests {
         assert!(b.sample(wo, 0.3, [0.3, 0.3]).is_lost());
         assert_eq!(b.pdf(wo, [0.0, 0.6, 0.8]), 0.0);
         assert_eq!(b.lost_mass(wo), 1.0);
-        assert_eq!(b.table_bytes(), 8 * (VIEW_NODES * 2 + t_edges(b.model()).len()));
+        assert_eq!(
+            b.table_bytes(),
+            8 * (VIEW_NODES * 2 + t_edges(b.model()).len())
+        );
     }
 
     #[test]

@@ -159,7 +159,10 @@ mod tests {
         let n = 90_000;
         for k in 0..n {
             // A low-discrepancy lattice: exact enough to compare counts.
-            let u = [(k as f64 + 0.5) / n as f64, ((k * 7919) % n) as f64 / n as f64];
+            let u = [
+                (k as f64 + 0.5) / n as f64,
+                ((k * 7919) % n) as f64 / n as f64,
+            ];
             let (x, y) = d.sample(u);
             let i = d.marginal().cell_of(x).unwrap();
             let j = d.y_cell(y).unwrap();
@@ -169,7 +172,10 @@ mod tests {
         for c in 0..9 {
             let expected = mass[c] / total;
             let got = counts[c] as f64 / n as f64;
-            assert!((got - expected).abs() < 2e-3, "cell {c}: {got} vs {expected}");
+            assert!(
+                (got - expected).abs() < 2e-3,
+                "cell {c}: {got} vs {expected}"
+            );
         }
         let widths = [0.2, 0.3, 0.5];
         let integral: f64 = (0..3)
