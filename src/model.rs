@@ -323,11 +323,25 @@ impl Model {
     /// lobe: what [`Model::eval_angles`] sums (with d_C, then clamps), and
     /// what a sampler weighs its lobes by. Returns false (calling nothing)
     /// when either direction is at or below the horizon.
-    pub fn lobe_terms(&self, a: &Angles, mut term: impl FnMut(usize, [f64; 3])) -> bool {
+    pub fn lobe_terms(&self, a: &Angles, term: impl FnMut(usize, [f64; 3])) -> bool {
         let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
         if ci <= 0.0 || co <= 0.0 {
             return false;
         }
+        self.terms_with_cosines(a, ci, co, term);
+        true
+    }
+
+    /// [`Model::lobe_terms`] with the cosines of theta_i and theta_o given
+    /// (both positive).
+    #[inline]
+    fn terms_with_cosines(
+        &self,
+        a: &Angles,
+        ci: f64,
+        co: f64,
+        mut term: impl FnMut(usize, [f64; 3]),
+    ) {
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
         let (gis, gos) = (
@@ -344,7 +358,6 @@ impl Model {
                 ds.apply_f32(&lobe.d) * gis.apply_f32(&lobe.g) * gos.apply_f32(&lobe.g) / (ci * co);
             term(m, std::array::from_fn(|c| lobe.s[c] as f64 * f[c] * spec));
         }
-        true
     }
 
     /// BRDF value for unit directions in the local shading frame (normal
@@ -354,7 +367,36 @@ impl Model {
         if wi[2] <= 0.0 || wo[2] <= 0.0 {
             return [0.0; 3];
         }
-        self.eval_angles(&Angles::from_directions(wi, wo))
+        if !self.layout.is_isotropic() {
+            return self.eval_angles(&Angles::from_directions(wi, wo));
+        }
+        // Isotropic tables read only the four elevations, so skip the
+        // azimuths and rotations of the full Rusinkiewicz map: theta_h from
+        // h = (wi + wo) / |wi + wo|, cos theta_d = wi.h, and the cosines of
+        // theta_i and theta_o are the z components (the same angles to
+        // rounding; tests/sampling_bxdf.rs compares both paths).
+        // h.z = s.z / |s| exactly as the full map computes it: near the
+        // mirror direction acos amplifies any rounding of h.z.
+        let s = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
+        let n = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+        let acos = |c: f64| c.clamp(-1.0, 1.0).acos();
+        let a = Angles {
+            theta_h: acos(s[2] / n),
+            phi_h: 0.0,
+            theta_d: acos((wi[0] * s[0] + wi[1] * s[1] + wi[2] * s[2]) / n),
+            phi_d: 0.0,
+            theta_i: acos(wi[2]),
+            phi_i: 0.0,
+            theta_o: acos(wo[2]),
+            phi_o: 0.0,
+        };
+        let mut v = self.diffuse.map(f64::from);
+        self.terms_with_cosines(&a, wi[2].min(1.0), wo[2].min(1.0), |_, t| {
+            for c in 0..3 {
+                v[c] += t[c];
+            }
+        });
+        v.map(|x| x.max(0.0))
     }
 }
 

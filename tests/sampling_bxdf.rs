@@ -4,7 +4,7 @@
 //! sampler tests), and the Monte Carlo weight `sample` returns.
 
 use npf::model::{Layout, Model};
-use npf::sampling::{Component, NpfBxdf};
+use npf::sampling::{Component, NpfBxdf, PHI_CELLS};
 use npf::synth::known_factor_model;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -27,6 +27,14 @@ fn three_lobes() -> Model {
 fn diffuse_only() -> Model {
     let mut m = known_factor_model(Layout::default(), &[0.2]);
     m.lobes[0].s = [0.0; 3];
+    m
+}
+
+/// One lobe of the three-lobe model alone (no diffuse term): the mixture is
+/// then that single component.
+fn lobe_only(alpha: f64) -> Model {
+    let mut m = known_factor_model(Layout::default(), &[alpha]);
+    m.diffuse = [0.0; 3];
     m
 }
 
@@ -176,11 +184,26 @@ fn integrate_pdf_h(b: &NpfBxdf, wo: Vec3, edges: &[f64], p0: f64, p1: f64) -> f6
             if hi <= lo {
                 continue;
             }
-            let panels = 3;
-            let ph_w = (hi - lo) / panels as f64;
+            // Panels break where the sampler's azimuth cells do (its pdf
+            // jumps there), three per piece.
+            let mut breaks = vec![lo];
+            let cell = PI / PHI_CELLS as f64;
+            for k in -(PHI_CELLS as i64)..=(PHI_CELLS as i64) {
+                let x = k as f64 * cell;
+                if x > lo && x < hi {
+                    breaks.push(x);
+                }
+            }
+            breaks.push(hi);
+            let pieces: Vec<(f64, f64)> = breaks
+                .windows(2)
+                .flat_map(|w| {
+                    let step = (w[1] - w[0]) / 3.0;
+                    (0..3).map(move |k| (w[0] + k as f64 * step, w[0] + (k + 1) as f64 * step))
+                })
+                .collect();
             let mut inner = 0.0;
-            for k in 0..panels {
-                let (a, c) = (lo + k as f64 * ph_w, lo + (k + 1) as f64 * ph_w);
+            for (a, c) in pieces {
                 for (xp, wp) in GL_X.iter().zip(GL_W) {
                     let ph = 0.5 * (a + c) + 0.5 * (c - a) * xp;
                     let wi = wi_of(wo0, th, ph);
@@ -536,6 +559,70 @@ fn chi_square_sample_matches_pdf() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn chi_square_each_component_matches_its_pdf() {
+    // Each lobe component alone (its view table at the nearest view node,
+    // between nodes too: 40 and 70 degrees are off the 5.93-degree grid);
+    // the diffuse component alone is the "diffuse" model above.
+    let views = [0.0, 40.0, 70.0, 87.0];
+    let lobes = [0.02, 0.15, 0.5];
+    let tests = lobes.len() * views.len();
+    let alpha = 1.0 - (1.0 - 0.01f64).powf(1.0 / tests as f64);
+    let mut failures = Vec::new();
+    for (i, &a) in lobes.iter().enumerate() {
+        let b = NpfBxdf::new(lobe_only(a)).unwrap();
+        assert_eq!(b.selection_probabilities(wo_at(10.0))[0], 0.0);
+        for (j, &theta_o) in views.iter().enumerate() {
+            let p = chi2_p_value(&b, wo_at(theta_o), 200_000, 300 + (i * 10 + j) as u64);
+            eprintln!("chi2 lobe {a:5} theta_o {theta_o:4}: p = {p:.4}");
+            if p.is_nan() || p <= alpha {
+                failures.push(format!(
+                    "lobe {a} at {theta_o} deg: p = {p:.3e} < {alpha:.3e}"
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn isotropic_eval_matches_the_full_angle_map() {
+    // Model::eval skips the azimuths for isotropic tables; the value must be
+    // eval_angles at the full Rusinkiewicz angles, to rounding.
+    let m = three_lobes();
+    let mut rng = Pcg64::seed_from_u64(11);
+    let mut worst = 0.0f64;
+    for _ in 0..20_000 {
+        let wo = spherical(rng.gen::<f64>() * 1.55, rng.gen::<f64>() * 2.0 * PI);
+        let wi = if rng.gen::<bool>() {
+            // Near the mirror direction, where the specular lobe is.
+            let r = [-wo[0], -wo[1], wo[2]];
+            let d = [
+                rng.gen::<f64>() - 0.5,
+                rng.gen::<f64>() - 0.5,
+                rng.gen::<f64>() - 0.5,
+            ];
+            let e = 0.02 * rng.gen::<f64>();
+            let v = [r[0] + e * d[0], r[1] + e * d[1], r[2] + e * d[2]];
+            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            [v[0] / n, v[1] / n, v[2] / n]
+        } else {
+            spherical(rng.gen::<f64>() * 1.55, rng.gen::<f64>() * 2.0 * PI)
+        };
+        if wi[2] <= 0.0 {
+            continue;
+        }
+        let fast = m.eval(wo, wi);
+        let full = m.eval_angles(&npf_data_loaders::geometry::Angles::from_directions(wi, wo));
+        for c in 0..3 {
+            let rel = (fast[c] - full[c]).abs() / full[c].abs().max(1e-300);
+            worst = worst.max(if full[c] == 0.0 { fast[c].abs() } else { rel });
+        }
+    }
+    eprintln!("fast vs full angle map: largest relative difference {worst:e}");
+    assert!(worst < 1e-9, "largest relative difference {worst:e}");
 }
 
 #[test]

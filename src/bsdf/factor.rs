@@ -3,18 +3,22 @@
 //! sampler.
 //!
 //! [`NpfBxdf`] wraps a [`Model`] with tables built once: per specular lobe
-//! a piecewise-constant distribution of the half vector in
-//! `t = sin^2 theta_h` proportional to `D^m(theta_h)` (so the half-vector
-//! density per solid angle is proportional to `D^m cos theta_h`), and the
-//! lobe-selection probabilities at 16 view angles.
+//! and per view angle (16 nodes in theta_o) a piecewise-constant 2-D
+//! distribution of the half vector in (`t = sin^2 theta_h`, azimuth
+//! relative to wo) proportional to the lobe's visible normals,
+//! `D^m(theta_h) max(0, wo.h)`, weighted by the lobe's `G^m(theta_i)` and
+//! `F(theta_d)` (plus a small share of plain `D` for coverage); and the
+//! component-selection probabilities at the same 16 view angles from each
+//! component's directional albedo. See docs/sampling.md.
 
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
-use crate::sampling::PiecewiseConstant;
+use crate::sampling::{PiecewiseConstant, PiecewiseConstant2D};
 use npf_data_loaders::geometry::{Angles, Vec3};
+use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Sub-cells per D-axis interval in the half-vector tables: 4 x 90 = 360
@@ -30,6 +34,16 @@ pub const SELECTION_FLOOR: f64 = 0.01;
 /// Strata in u of the albedo quadrature behind the selection (twice as many
 /// in phi_h): 48 puts five nodes inside a lobe of GGX roughness 0.02.
 const ALBEDO_GRID: usize = 48;
+/// Cells of the relative half-vector azimuth |phi_h - phi_o| in [0, pi] per
+/// t cell of a lobe's view table (the lobe is mirror-symmetric about wo's
+/// plane of incidence; the sign of the azimuth is drawn with probability 1/2).
+pub const PHI_CELLS: usize = 8;
+/// Share of a view table's mass spread as plain D (times the G bound) over
+/// every azimuth, whatever the view: the lobe then covers every half vector
+/// where D has mass, and weights stay bounded between view nodes.
+/// (2% rather than 10%: near-Lambertian fits sample better, 2x lower
+/// variance on white-fabric, see docs/sampling.md.)
+pub const COVERAGE_SHARE: f64 = 0.02;
 /// Rec. 709 luminance, which weighs the three channels into one selection.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -52,9 +66,13 @@ pub const GL4_W: [f64; 4] = [
 #[derive(Clone, Debug)]
 pub struct NpfBxdf {
     model: Model,
-    /// Half-vector distribution in t = sin^2 theta_h per lobe; `None` for a
-    /// lobe without mass (D or s all zero), which is never chosen.
-    lobes: Vec<Option<PiecewiseConstant>>,
+    /// The t = sin^2 theta_h cell edges every lobe's tables share (the D
+    /// axis's intervals, split into SUBCELLS).
+    edges: Vec<f64>,
+    /// Per lobe, VIEW_NODES half-vector tables over (t, relative azimuth in
+    /// [0, pi]); `None` for a lobe without mass (D or s all zero), which is
+    /// never chosen.
+    lobes: Vec<Option<Vec<PiecewiseConstant2D>>>,
     /// Selection probabilities, VIEW_NODES rows of (1 + lobes): diffuse first.
     selection: Vec<f64>,
 }
@@ -90,18 +108,18 @@ impl NpfBxdf {
     /// file already is), so a bad model is an error, never a panic.
     pub fn new(model: Model) -> Result<Self, BsdfError> {
         model.validate().map_err(BsdfError::InvalidModel)?;
-        let lobes = model
-            .lobes
-            .iter()
-            .map(|lobe| {
-                if lobe.s.iter().all(|&s| s <= 0.0) {
+        let edges = t_edges(&model);
+        let lobes = (0..model.lobes.len())
+            .map(|m| {
+                if model.lobes[m].s.iter().all(|&s| s <= 0.0) {
                     return None;
                 }
-                half_vector_distribution(&model, &lobe.d, &lobe.g)
+                lobe_tables(&model, m, &edges)
             })
             .collect();
         let mut bxdf = NpfBxdf {
             model,
+            edges,
             lobes,
             selection: Vec::new(),
         };
@@ -119,20 +137,29 @@ impl NpfBxdf {
         1 + self.model.lobes.len()
     }
 
-    /// Bytes of the sampling tables (half-vector distributions as f64 edges,
-    /// cdf and densities, plus the selection table).
+    /// Bytes of the sampling tables (half-vector tables as f64 edges, cdf
+    /// and densities, plus the selection table).
     pub fn table_bytes(&self) -> usize {
         self.lobes
             .iter()
             .flatten()
-            .map(PiecewiseConstant::table_bytes)
+            .flatten()
+            .map(PiecewiseConstant2D::table_bytes)
             .sum::<usize>()
-            + 8 * self.selection.len()
+            + 8 * (self.selection.len() + self.edges.len())
     }
 
-    /// The half-vector distribution of lobe m in t = sin^2 theta_h.
+    /// The half-vector distribution of lobe m in t = sin^2 theta_h at
+    /// normal view (the marginal of its first view table); its edges are
+    /// those of every table of the model.
     pub fn lobe_distribution(&self, m: usize) -> Option<&PiecewiseConstant> {
-        self.lobes.get(m).and_then(Option::as_ref)
+        self.lobe_table(m, 0).map(PiecewiseConstant2D::marginal)
+    }
+
+    /// Lobe m's half-vector table at view node k (theta_o = k / 15 * 89
+    /// degrees): x = t = sin^2 theta_h, y = |phi_h - phi_o| in [0, pi].
+    pub fn lobe_table(&self, m: usize, k: usize) -> Option<&PiecewiseConstant2D> {
+        self.lobes.get(m)?.as_ref()?.get(k)
     }
 
     fn has_diffuse(&self) -> bool {
@@ -257,11 +284,27 @@ impl NpfBxdf {
             return pdf;
         };
         let wo_h = dot(wo, h);
-        for (m, dist) in self.lobes.iter().enumerate() {
-            if let Some(dist) = dist {
+        if !(h[2] > 0.0 && wo_h > 0.0) {
+            return pdf;
+        }
+        // One cell lookup serves every lobe: they share the edges.
+        let n = self.edges.len() - 1;
+        if !(0.0..1.0).contains(&t) {
+            return pdf;
+        }
+        let i = (self.edges.partition_point(|&e| e <= t) - 1).min(n - 1);
+        let (ex, ey) = azimuth_frame(wo);
+        let phi = relative_azimuth(h, ex, ey);
+        let j = ((phi / PI * PHI_CELLS as f64) as usize).min(PHI_CELLS - 1);
+        let view = view_node(row);
+        // Density per solid angle of h: (table density / 2) over signed
+        // azimuths, times dt dphi / dOmega_h = 2 cos theta_h.
+        let jac = h[2] / (4.0 * wo_h);
+        for (m, tables) in self.lobes.iter().enumerate() {
+            if let Some(tables) = tables {
                 let p = self.selection_at(row, m + 1);
                 if p > 0.0 {
-                    pdf += p * lobe_pdf(dist, t, h[2], wo_h);
+                    pdf += p * tables[view].cell_density(i, j) * jac;
                 }
             }
         }
@@ -299,14 +342,13 @@ impl NpfBxdf {
             (cosine_hemisphere(u), Component::Diffuse)
         } else {
             let m = c - 1;
-            let dist = self.lobes[m].as_ref().expect("selected lobes have tables");
-            match sample_half_vector(dist, wo, u) {
-                Some(wi) => (wi, Component::Lobe(m)),
-                None => {
-                    let wi = reflect_raw(dist, wo, u);
-                    return BsdfSample::lost(wi, Component::Lobe(m));
-                }
+            let tables = self.lobes[m].as_ref().expect("selected lobes have tables");
+            let h = sample_half_vector(&tables[view_node(row)], wo, u);
+            let wi = reflect(wo, h);
+            if !(dot(wo, h) > 0.0 && wi[2] > 0.0) {
+                return BsdfSample::lost(wi, Component::Lobe(m));
             }
+            (wi, Component::Lobe(m))
         };
         let pdf = self.pdf(wo, wi);
         if !(pdf > 0.0) || !(wi[2] > 0.0) {
@@ -330,32 +372,46 @@ impl NpfBxdf {
             // Nothing to draw from (no diffuse term, no lobe with mass).
             return 1.0;
         }
+        let view = view_node(row);
         let mut lost = 0.0;
-        for (m, dist) in self.lobes.iter().enumerate() {
-            let Some(dist) = dist else { continue };
+        for (m, tables) in self.lobes.iter().enumerate() {
+            let Some(tables) = tables else { continue };
             let p = self.selection_at(row, m + 1);
             if p <= 0.0 {
                 continue;
             }
-            let e = dist.edges();
+            let table = &tables[view];
+            let e = &self.edges;
+            let dphi = PI / PHI_CELLS as f64;
             let mut lobe_lost = 0.0;
-            for i in 0..dist.cells() {
-                let prob = dist.cell_probability(i);
+            for i in 0..e.len() - 1 {
+                let prob = table.marginal().cell_probability(i);
                 if prob == 0.0 {
                     continue;
                 }
-                // Four Gauss points on each of eight slices of the cell.
-                let mut frac = 0.0;
+                // Four Gauss points on each of eight slices of the cell; at
+                // each, the lost azimuths are [phi*, pi] (closed form).
                 let slices = 8;
+                let mut frac = [0.0; PHI_CELLS];
                 for s in 0..slices {
                     let a = e[i] + (e[i + 1] - e[i]) * s as f64 / slices as f64;
                     let b = e[i] + (e[i + 1] - e[i]) * (s + 1) as f64 / slices as f64;
                     for (x, w) in GL4_X.iter().zip(GL4_W) {
                         let t = 0.5 * (a + b) + 0.5 * (b - a) * x;
-                        frac += 0.5 * w / slices as f64 * azimuth_lost_fraction(t, cos_o, sin_o);
+                        let phi_star = PI * (1.0 - azimuth_lost_fraction(t, cos_o, sin_o));
+                        for (j, f) in frac.iter_mut().enumerate() {
+                            let (lo, hi) = (j as f64 * dphi, (j + 1) as f64 * dphi);
+                            let over = (hi - phi_star.max(lo)).clamp(0.0, dphi) / dphi;
+                            *f += 0.5 * w / slices as f64 * over;
+                        }
                     }
                 }
-                lobe_lost += prob * frac;
+                let cell: f64 = frac
+                    .iter()
+                    .enumerate()
+                    .map(|(j, f)| table.conditional_probability(i, j) * f)
+                    .sum();
+                lobe_lost += prob * cell;
             }
             lost += p * lobe_lost;
         }
@@ -388,67 +444,65 @@ fn azimuth_lost_fraction(t: f64, cos_o: f64, sin_o: f64) -> f64 {
     }
 }
 
-/// Half-vector density of a lobe, converted to wi: p_t(t) cos(theta_h) / pi
-/// per solid angle of h, times the reflection Jacobian 1 / (4 |wo.h|).
+/// The nearest view node of a view at selection-table position (k, w)
+/// (see `selection_row`): each lobe draws from that node's table, so its
+/// density is exactly that table's.
 #[inline]
-fn lobe_pdf(dist: &PiecewiseConstant, t: f64, cos_h: f64, wo_h: f64) -> f64 {
-    if !(cos_h > 0.0 && wo_h > 0.0) {
-        return 0.0;
-    }
-    dist.pdf(t) * cos_h / PI / (4.0 * wo_h)
-}
-
-/// The raw reflection of wo about the half vector drawn from u (possibly
-/// below the horizon).
-fn reflect_raw(dist: &PiecewiseConstant, wo: Vec3, u: [f64; 2]) -> Vec3 {
-    let t = dist.sample(u[0]);
-    let (sin_h, cos_h) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
-    let (sp, cp) = (2.0 * PI * u[1]).sin_cos();
-    reflect(wo, [sin_h * cp, sin_h * sp, cos_h])
-}
-
-/// wi from a half vector drawn from a lobe table; None when it leaves the
-/// upper hemisphere (or wo.h <= 0).
-#[inline]
-fn sample_half_vector(dist: &PiecewiseConstant, wo: Vec3, u: [f64; 2]) -> Option<Vec3> {
-    let t = dist.sample(u[0]);
-    let (sin_h, cos_h) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
-    let (sp, cp) = (2.0 * PI * u[1]).sin_cos();
-    let h = [sin_h * cp, sin_h * sp, cos_h];
-    let wo_h = dot(wo, h);
-    if !(wo_h > 0.0) {
-        return None;
-    }
-    let k = 2.0 * wo_h;
-    let wi = [k * h[0] - wo[0], k * h[1] - wo[1], k * h[2] - wo[2]];
-    if wi[2] > 0.0 {
-        Some(wi)
+fn view_node((k, w): (usize, f64)) -> usize {
+    if w >= 0.5 {
+        k + 1
     } else {
-        None
+        k
     }
+}
+
+/// Unit vectors along wo's azimuth and perpendicular to it in the tangent
+/// plane (x and y for a wo at the normal).
+#[inline]
+fn azimuth_frame(wo: Vec3) -> ([f64; 2], [f64; 2]) {
+    let r2 = wo[0] * wo[0] + wo[1] * wo[1];
+    if !(r2 > 1e-30) {
+        return ([1.0, 0.0], [0.0, 1.0]);
+    }
+    let inv = 1.0 / r2.sqrt();
+    let ex = [wo[0] * inv, wo[1] * inv];
+    (ex, [-ex[1], ex[0]])
+}
+
+/// |phi_h - phi_o| in [0, pi] of a half vector.
+#[inline]
+fn relative_azimuth(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> f64 {
+    let x = h[0] * ex[0] + h[1] * ex[1];
+    let y = h[0] * ey[0] + h[1] * ey[1];
+    y.abs().atan2(x)
+}
+
+/// A half vector drawn from a lobe's view table: u[0] picks t, u[1] the
+/// sign of the relative azimuth (below or above 1/2) and, rescaled, its
+/// magnitude.
+#[inline]
+fn sample_half_vector(table: &PiecewiseConstant2D, wo: Vec3, u: [f64; 2]) -> Vec3 {
+    let v = unit(u[1]);
+    let (sign, v) = if v < 0.5 {
+        (1.0, 2.0 * v)
+    } else {
+        (-1.0, (2.0 * v - 1.0).min(1.0))
+    };
+    let (t, phi) = table.sample([u[0], v]);
+    let (sin_h, cos_h) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
+    let (sp, cp) = phi.sin_cos();
+    let (hx, hy) = (sin_h * cp, sign * sin_h * sp);
+    let (ex, ey) = azimuth_frame(wo);
+    [hx * ex[0] + hy * ey[0], hx * ex[1] + hy * ey[1], cos_h]
 }
 
 /// Cells whose mass is below this fraction of the lobe's total get none:
 /// never drawn, and pdf is zero there (other components still cover them).
 pub const NEGLIGIBLE_CELL: f64 = 1e-6;
 
-/// The half-vector table of one lobe: cells of t = sin^2 theta_h whose
-/// edges split every interval of the D axis into SUBCELLS parts. Cell i
-/// holds
-///
-///   mass_i = integral over the cell of D(theta_h) B(theta_h) dt
-///
-/// (4-point Gauss-Legendre), where B in [0, 1] is the bound of
-/// G(theta_i) G(theta_o) over the configurations with that half angle,
-/// divided by its largest value (see [`g_product_bound`]). With B = 1 the
-/// density in t is proportional to D, a half-vector density proportional to
-/// D cos theta_h per solid angle (classic D sampling). B only matters where
-/// G vanishes: a fitted D can be astronomically large in a far tail where G
-/// is ~1e-16 (its product with G G is what the model shows), and sampling
-/// D alone would spend the lobe's draws there. Cells below NEGLIGIBLE_CELL
-/// of the total are dropped. The table is exactly normalised either way, and
-/// pdf is exactly what sample draws.
-fn half_vector_distribution(model: &Model, d: &[f32], g: &[f32]) -> Option<PiecewiseConstant> {
+/// The t = sin^2 theta_h edges of the half-vector tables: every interval
+/// of the D axis split into SUBCELLS parts, from t = 0 to exactly 1.
+fn t_edges(model: &Model) -> Vec<f64> {
     let axis = model.layout.d.theta;
     let end = axis.coord(FRAC_PI_2);
     let cells = (end.ceil() as usize).max(1) * SUBCELLS;
@@ -461,35 +515,141 @@ fn half_vector_distribution(model: &Model, d: &[f32], g: &[f32]) -> Option<Piece
     edges[0] = 0.0;
     edges[cells] = 1.0;
     edges.dedup_by(|b, a| *b <= *a);
+    edges
+}
+
+/// Gauss-Legendre points per azimuth cell in the table masses.
+const PHI_GAUSS: usize = 2;
+
+/// The VIEW_NODES half-vector tables of lobe m: for view node k (wo_k at
+/// theta_k, azimuth 0), cell (i, j) of (t, |phi|) holds
+///
+///   mass = integral over the cell of D(theta_h) [ max(0, wo_k.h) / cos theta_h
+///          * G+(theta_i) F(theta_d) [wi_k above the horizon] ] dt dphi
+///
+/// (the visible normals of D, per solid angle D max(0, wo.h), times the
+/// lobe's shadowing of wi and its Fresnel luminance, both normalised by
+/// their largest values; 4 x 2 Gauss-Legendre points per cell), renormalised
+/// and mixed with a COVERAGE_SHARE of the view-independent D B table (B the
+/// G-product bound of [`g_product_bound`]), which keeps every half vector
+/// where D has mass covered at every view. Cells below NEGLIGIBLE_CELL of
+/// the total get none. The tables are exactly normalised, and pdf is
+/// exactly what sample draws, whatever the quadrature's accuracy.
+fn lobe_tables(model: &Model, m: usize, edges: &[f64]) -> Option<Vec<PiecewiseConstant2D>> {
+    let lobe = &model.lobes[m];
+    let (d_axis, g_axis, f_axis) = (
+        model.layout.d.theta,
+        model.layout.g.theta,
+        model.layout.f.theta,
+    );
     if edges.len() < 2 {
         return None;
     }
-    let bound = g_product_bound(model, g);
+    let bound = g_product_bound(model, &lobe.g);
     let b_max = bound(0.0);
     if !(b_max > 0.0 && b_max.is_finite()) {
         return None;
     }
-    let mut mass = Vec::with_capacity(edges.len() - 1);
+    // G+ and the lobe's Fresnel luminance (with its scales), normalised.
+    let g_plus = |theta: f64| g_axis.stencil(theta).apply_f32(&lobe.g).max(0.0);
+    let f_lum: Vec<f32> = (0..model.fresnel[0].len())
+        .map(|k| {
+            (0..3)
+                .map(|c| LUMINANCE[c] * lobe.s[c] as f64 * model.fresnel[c][k] as f64)
+                .sum::<f64>() as f32
+        })
+        .collect();
+    let g_max = (0..=360)
+        .map(|k| g_plus(k as f64 / 360.0 * FRAC_PI_2))
+        .fold(0.0, f64::max);
+    let f_max = f_lum.iter().copied().fold(0.0f32, f32::max) as f64;
+    let nx = edges.len() - 1;
+    let dphi = PI / PHI_CELLS as f64;
+    // Gauss points in t per cell: (t, weight, D, D B, sin_h, cos_h).
+    let mut points = Vec::with_capacity(nx * 4);
     for w in edges.windows(2) {
         let (a, b) = (w[0], w[1]);
-        let mut m = 0.0;
         for (x, wt) in GL4_X.iter().zip(GL4_W) {
             let t = 0.5 * (a + b) + 0.5 * (b - a) * x;
             let theta = t.sqrt().min(1.0).asin();
-            let weight = (bound(theta) / b_max).min(1.0);
-            m += 0.5 * (b - a) * wt * axis.stencil(theta).apply_f32(d).max(0.0) * weight;
+            let d = d_axis.stencil(theta).apply_f32(&lobe.d).max(0.0);
+            let db = d * (bound(theta) / b_max).min(1.0);
+            points.push((
+                0.5 * (b - a) * wt,
+                d,
+                db,
+                t.sqrt(),
+                (1.0 - t).max(0.0).sqrt(),
+            ));
         }
-        mass.push(m);
     }
-    let total: f64 = mass.iter().sum();
-    if total.is_finite() && total > 0.0 {
-        for m in mass.iter_mut() {
-            if *m < NEGLIGIBLE_CELL * total {
-                *m = 0.0;
+    // The view-independent coverage part (per cell; uniform in phi).
+    let cover: Vec<f64> = points
+        .chunks(4)
+        .map(|p| p.iter().map(|q| q.0 * q.2).sum())
+        .collect();
+    let cover_total: f64 = cover.iter().sum();
+    if !(cover_total > 0.0 && cover_total.is_finite()) {
+        return None;
+    }
+    let shaped = g_max > 0.0 && f_max > 0.0;
+    // Views are independent: build them in parallel (each table is the
+    // same whatever the thread count).
+    let view_table = |k: usize| -> Option<PiecewiseConstant2D> {
+        let (sin_o, cos_o) = view_angle(k).sin_cos();
+        let mut mass = vec![0.0; nx * PHI_CELLS];
+        if shaped {
+            for (i, cell) in points.chunks(4).enumerate() {
+                for &(wt, d, _, sin_h, cos_h) in cell {
+                    if !(d > 0.0 && cos_h > 0.0) {
+                        continue;
+                    }
+                    for j in 0..PHI_CELLS {
+                        let mut acc = 0.0;
+                        for g in 0..PHI_GAUSS {
+                            let x = if PHI_GAUSS == 2 {
+                                [-0.577_350_269_189_625_8, 0.577_350_269_189_625_8][g]
+                            } else {
+                                0.0
+                            };
+                            let phi = (j as f64 + 0.5 + 0.5 * x) * dphi;
+                            let h = [sin_h * phi.cos(), sin_h * phi.sin(), cos_h];
+                            let wo_h = sin_o * h[0] + cos_o * h[2];
+                            let wi_z = 2.0 * wo_h * cos_h - cos_o;
+                            if !(wo_h > 0.0 && wi_z > 0.0) {
+                                continue;
+                            }
+                            let theta_i = wi_z.min(1.0).acos();
+                            let theta_d = wo_h.min(1.0).acos();
+                            let gi = g_plus(theta_i) / g_max;
+                            let fd = f_axis.stencil(theta_d).apply_f32(&f_lum).max(0.0) / f_max;
+                            acc += wo_h / cos_h * gi * fd / PHI_GAUSS as f64;
+                        }
+                        mass[i * PHI_CELLS + j] += wt * d * acc * dphi;
+                    }
+                }
             }
         }
-    }
-    PiecewiseConstant::new(edges, &mass)
+        let total: f64 = mass.iter().sum();
+        let (main, share) = if total > 0.0 && total.is_finite() {
+            (1.0 / total, COVERAGE_SHARE)
+        } else {
+            (0.0, 1.0)
+        };
+        for (i, &c) in cover.iter().enumerate() {
+            for j in 0..PHI_CELLS {
+                let v = &mut mass[i * PHI_CELLS + j];
+                *v = *v * main * (1.0 - share) + share * c / cover_total / PHI_CELLS as f64;
+            }
+        }
+        for v in mass.iter_mut() {
+            if *v < NEGLIGIBLE_CELL / PHI_CELLS as f64 {
+                *v = 0.0;
+            }
+        }
+        PiecewiseConstant2D::new(edges.to_vec(), PHI_CELLS, PI, &mass)
+    };
+    (0..VIEW_NODES).into_par_iter().map(view_table).collect()
 }
 
 /// The largest |G(theta_i) G(theta_o)| over the configurations with half
@@ -583,7 +743,10 @@ mod tests {
         assert!(b.sample(wo, 0.3, [0.3, 0.3]).is_lost());
         assert_eq!(b.pdf(wo, [0.0, 0.6, 0.8]), 0.0);
         assert_eq!(b.lost_mass(wo), 1.0);
-        assert_eq!(b.table_bytes(), 8 * VIEW_NODES * 2);
+        assert_eq!(
+            b.table_bytes(),
+            8 * (VIEW_NODES * 2 + t_edges(b.model()).len())
+        );
     }
 
     #[test]

@@ -26,7 +26,10 @@ mod factor;
 mod ggx;
 mod measured;
 
-pub use factor::{NpfBxdf, GL4_W, GL4_X, NEGLIGIBLE_CELL, SELECTION_FLOOR, SUBCELLS, VIEW_NODES};
+pub use factor::{
+    NpfBxdf, COVERAGE_SHARE, GL4_W, GL4_X, NEGLIGIBLE_CELL, PHI_CELLS, SELECTION_FLOOR, SUBCELLS,
+    VIEW_NODES,
+};
 
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
 use npf_data_loaders::MerlTable;

@@ -86,6 +86,12 @@ impl PiecewiseConstant {
     /// Cells of zero probability are never chosen.
     #[inline]
     pub fn sample(&self, u: f64) -> f64 {
+        self.sample_cell(u).1
+    }
+
+    /// [`PiecewiseConstant::sample`] with the index of the cell drawn.
+    #[inline]
+    pub fn sample_cell(&self, u: f64) -> (usize, f64) {
         let n = self.cells();
         let u = if u.is_finite() {
             u.clamp(0.0, 1.0)
@@ -112,21 +118,32 @@ impl PiecewiseConstant {
         // Stay inside the half-open cell so pdf finds the same cell.
         let x = a + du * (b - a);
         if x >= b {
-            a + (b - a) * (1.0 - f64::EPSILON)
+            (i, a + (b - a) * (1.0 - f64::EPSILON))
         } else {
-            x
+            (i, x)
         }
+    }
+
+    /// The cell holding x (None outside the support).
+    #[inline]
+    pub fn cell_of(&self, x: f64) -> Option<usize> {
+        let n = self.cells();
+        if !(x >= self.edges[0] && x < self.edges[n]) {
+            return None;
+        }
+        Some((self.edges.partition_point(|&e| e <= x) - 1).min(n - 1))
+    }
+
+    /// Density of cell i.
+    #[inline]
+    pub fn cell_density(&self, i: usize) -> f64 {
+        self.density[i]
     }
 
     /// Density at x (zero outside the support).
     #[inline]
     pub fn pdf(&self, x: f64) -> f64 {
-        let n = self.cells();
-        if !(x >= self.edges[0] && x < self.edges[n]) {
-            return 0.0;
-        }
-        let i = self.edges.partition_point(|&e| e <= x) - 1;
-        self.density[i.min(n - 1)]
+        self.cell_of(x).map_or(0.0, |i| self.density[i])
     }
 }
 

@@ -1,0 +1,183 @@
+//! Throughput of the factor model's BSDF: `eval`, `sample` and `pdf` of
+//! [`NpfBxdf`] (single thread; criterion reports elements per second).
+//!
+//! cargo bench --bench bsdf
+//!
+//! The model is the synthetic three-lobe model of the tests (GGX-shaped
+//! factors, roughness 0.02, 0.15 and 0.5, on the default 90-node layout),
+//! or the model file named by `NPF_BENCH_MODEL` (e.g. a fit kept outside
+//! the repository). Inputs are 1024 fixed random views (theta_o up to 80
+//! degrees) and directions: `eval` and `pdf` on pairs drawn by the sampler
+//! itself (where renderers evaluate), `sample` on random numbers.
+//!
+//! Time is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID` on Linux), not
+//! wall time: the build machine is shared, and CPU time is what a core
+//! spends, so elements/s are per core. `NPF_BENCH_WALL=1` measures wall
+//! time instead (on an idle machine both agree).
+
+use criterion::measurement::{Measurement, ValueFormatter};
+use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+use npf::bsdf::NpfBxdf;
+use npf::model::{Layout, Model};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+
+const BATCH: usize = 1024;
+
+fn model() -> Model {
+    match std::env::var_os("NPF_BENCH_MODEL") {
+        Some(path) => {
+            npf::modelfile::read(std::path::Path::new(&path))
+                .unwrap_or_else(|e| panic!("NPF_BENCH_MODEL: {e}"))
+                .model
+        }
+        None => npf::synth::known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]),
+    }
+}
+
+/// CPU time of the calling thread in nanoseconds (wall time when asked, or
+/// off Linux).
+fn now_ns() -> u64 {
+    #[cfg(target_os = "linux")]
+    if std::env::var_os("NPF_BENCH_WALL").is_none() {
+        #[repr(C)]
+        struct Timespec {
+            sec: i64,
+            nsec: i64,
+        }
+        extern "C" {
+            fn clock_gettime(clock: i32, ts: *mut Timespec) -> i32;
+        }
+        const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+        let mut ts = Timespec { sec: 0, nsec: 0 };
+        // SAFETY: clock_gettime writes one timespec, which ts is.
+        if unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) } == 0 {
+            return ts.sec as u64 * 1_000_000_000 + ts.nsec as u64;
+        }
+    }
+    static START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+    START
+        .get_or_init(std::time::Instant::now)
+        .elapsed()
+        .as_nanos() as u64
+}
+
+/// Criterion measurement on [`now_ns`].
+struct CpuTime;
+
+struct NsFormatter;
+
+impl ValueFormatter for NsFormatter {
+    fn scale_values(&self, typical: f64, values: &mut [f64]) -> &'static str {
+        let (k, unit) = if typical >= 1e6 {
+            (1e-6, "ms")
+        } else if typical >= 1e3 {
+            (1e-3, "us")
+        } else {
+            (1.0, "ns")
+        };
+        values.iter_mut().for_each(|v| *v *= k);
+        unit
+    }
+
+    fn scale_throughputs(&self, _typical: f64, t: &Throughput, values: &mut [f64]) -> &'static str {
+        let n = match *t {
+            Throughput::Bytes(n) | Throughput::BytesDecimal(n) | Throughput::Elements(n) => {
+                n as f64
+            }
+        };
+        // ns per batch -> million elements per second.
+        values.iter_mut().for_each(|v| *v = n * 1e3 / *v);
+        "Melem/s"
+    }
+
+    fn scale_for_machines(&self, values: &mut [f64]) -> &'static str {
+        let _ = values;
+        "ns"
+    }
+}
+
+impl Measurement for CpuTime {
+    type Intermediate = u64;
+    type Value = u64;
+    fn start(&self) -> u64 {
+        now_ns()
+    }
+    fn end(&self, i: u64) -> u64 {
+        now_ns().saturating_sub(i)
+    }
+    fn add(&self, a: &u64, b: &u64) -> u64 {
+        a + b
+    }
+    fn zero(&self) -> u64 {
+        0
+    }
+    fn to_f64(&self, v: &u64) -> f64 {
+        *v as f64
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        &NsFormatter
+    }
+}
+
+fn bench(c: &mut Criterion<CpuTime>) {
+    let b = NpfBxdf::new(model()).expect("a valid model");
+    let mut rng = Pcg64::seed_from_u64(1);
+    let us: Vec<[f64; 3]> = (0..BATCH)
+        .map(|_| [rng.gen(), rng.gen(), rng.gen()])
+        .collect();
+    let wos: Vec<[f64; 3]> = (0..BATCH)
+        .map(|_| {
+            let (t, p) = (
+                rng.gen::<f64>() * 80f64.to_radians(),
+                rng.gen::<f64>() * std::f64::consts::TAU,
+            );
+            [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
+        })
+        .collect();
+    let mut pairs = Vec::with_capacity(BATCH);
+    while pairs.len() < BATCH {
+        let wo = wos[pairs.len()];
+        let s = b.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
+        if !s.is_lost() {
+            pairs.push((wo, s.wi));
+        }
+    }
+    let mut g = c.benchmark_group("npf_bxdf");
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("eval", |bench| {
+        bench.iter(|| {
+            let mut acc = 0.0;
+            for &(wo, wi) in &pairs {
+                acc += b.eval(black_box(wo), black_box(wi))[1];
+            }
+            acc
+        })
+    });
+    g.bench_function("pdf", |bench| {
+        bench.iter(|| {
+            let mut acc = 0.0;
+            for &(wo, wi) in &pairs {
+                acc += b.pdf(black_box(wo), black_box(wi));
+            }
+            acc
+        })
+    });
+    g.bench_function("sample", |bench| {
+        bench.iter(|| {
+            let mut acc = 0.0;
+            for (wo, u) in wos.iter().zip(&us) {
+                acc += b.sample(black_box(*wo), u[0], [u[1], u[2]]).weight[1];
+            }
+            acc
+        })
+    });
+    g.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = bench
+}
+criterion_main!(benches);
