@@ -152,6 +152,17 @@ impl FitConfig {
         Layout::isotropic(self.nodes)
     }
 
+    /// The layout a fit of `samples` uses: [`FitConfig::layout`] for
+    /// isotropic data, [`Layout::anisotropic`] (2010 parameters for three
+    /// lobes; `nodes` does not apply) for anisotropic data such as UTIA tables.
+    pub fn layout_for(&self, samples: &MeasuredSamples) -> Layout {
+        if samples.isotropic {
+            self.layout()
+        } else {
+            Layout::anisotropic()
+        }
+    }
+
     /// The sample-set options (weighting and cut-offs).
     pub fn sample_options(&self) -> SampleOptions {
         SampleOptions {
@@ -219,7 +230,7 @@ fn run_kind(
     observer: &mut dyn FnMut(usize, &SweepReport),
 ) -> Result<Produced, FitError> {
     config.validate()?;
-    let layout = config.layout();
+    let layout = config.layout_for(samples);
     let so = config.sample_options();
     match config.model {
         ModelKind::Factor => {

@@ -7,6 +7,7 @@
 //! interpolation stencils) is built from that set by the `npf` crate.
 
 pub mod atomic;
+pub mod detect;
 pub mod error;
 pub mod geometry;
 pub mod merl;
@@ -14,6 +15,7 @@ mod planar;
 pub mod samples;
 pub mod utia;
 
+pub use detect::{Format, Table};
 pub use error::LoadError;
 pub use merl::MerlTable;
 pub use samples::{MeasuredSample, MeasuredSamples};
