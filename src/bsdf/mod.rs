@@ -22,11 +22,13 @@
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod anisotropic;
 mod factor;
 mod ggx;
 mod measured;
 mod utia;
 
+pub use anisotropic::{AnisoSampler, PHI_SUB, THETA_SUB};
 pub use factor::{NpfBxdf, GL4_W, GL4_X, NEGLIGIBLE_CELL, SELECTION_FLOOR, SUBCELLS, VIEW_NODES};
 
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
