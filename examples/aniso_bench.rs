@@ -7,7 +7,11 @@
 //! the analytic BRDF, and fit vs the interpolated table. Peak memory is the
 //! process's (Linux VmHWM) at the end.
 //!
-//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--images DIR] [--only NAME]
+//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--images DIR] [--only NAME] [--d-nodes N]
+//!
+//! `--d-nodes N` fits a finer layout instead (an experiment, not the
+//! 2010-parameter model): D on N uniform theta_h nodes 90/N degrees apart
+//! times 48 phi nodes, G and F as in `Layout::anisotropic()`.
 //!
 //! With --images, writes DIR/NAME.png: analytic reference | fit | difference (x8).
 
@@ -15,6 +19,10 @@ use npf::bsdf::NpfBxdf;
 use npf::cli::png::encode_png;
 use npf::evaluation::numeric_psnr;
 use npf::fit::{fit, FitConfig};
+use npf::grid::{Axis, Grid};
+use npf::model::Layout;
+use npf::samples::FitSet;
+use npf::solver::Executor;
 use npf::render::{difference_rgb8, psnr, render, RenderOptions};
 use npf::synth_aniso::catalogue;
 use std::time::Instant;
@@ -38,6 +46,7 @@ fn main() {
     if let Some(s) = arg(&args, "--max-sweeps") {
         config.max_sweeps = s;
     }
+    let d_nodes: Option<usize> = arg(&args, "--d-nodes");
     let opts = RenderOptions::default();
     println!("| material | fit s | sweeps | num. PSNR dB | render PSNR fit vs analytic | table interp. vs analytic | fit vs table interp. |");
     println!("|---|---|---|---|---|---|---|");
@@ -49,9 +58,24 @@ fn main() {
         let table = m.table();
         let samples = table.samples(&m.name);
         let t = Instant::now();
-        let fitted = fit(&samples, &config, &mut |_, _| {}).expect("fit");
+        let result = match d_nodes {
+            None => fit(&samples, &config, &mut |_, _| {}).expect("fit").result,
+            Some(n) => {
+                let layout = Layout {
+                    d: Grid::plane(Axis::Uniform { n }, 48),
+                    ..Layout::anisotropic()
+                };
+                let set = FitSet::build(&samples, layout, config.sample_options()).expect("set");
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("pool")
+                    .install(|| Executor::new(&set, config.fit_options()).run())
+                    .expect("fit")
+            }
+        };
         let secs = t.elapsed().as_secs_f64();
-        let bxdf = NpfBxdf::new(fitted.result.model.clone()).expect("valid model");
+        let bxdf = NpfBxdf::new(result.model.clone()).expect("valid model");
         let num = numeric_psnr(&samples, config.max_theta, &bxdf);
         let img_ref = render(opts, &m);
         let img_tab = render(opts, &table);
@@ -63,7 +87,7 @@ fn main() {
         println!(
             "| {} | {secs:.2} | {} | {num:.2} | {p_fa:.2} | {p_ta:.2} | {p_ft:.2} |",
             m.name,
-            fitted.result.history.len()
+            result.history.len()
         );
         if let Some(dir) = &images {
             let r = opts.res;

@@ -105,11 +105,29 @@ impl Grid {
 
     /// A theta stencil (possibly folded, see `samples`) extended over phi:
     /// unchanged for a 1-D table, the tensor product with the phi stencil
-    /// otherwise.
+    /// otherwise, except on the pole row (theta node 0, theta = 0 on every
+    /// axis): it is one direction whatever phi, so it is one value, the
+    /// row's first entry (its other entries are never read). Without this
+    /// the 48 pole values differ, fitted only through their theta
+    /// neighbours, and the model is discontinuous at the pole (a star in
+    /// renders where the view or light meets the normal).
     pub fn extend(&self, theta_stencil: Stencil, phi: f64) -> Stencil {
         match self.phi {
             None => theta_stencil,
-            Some(p) => theta_stencil.outer(&p.stencil(phi), p.n),
+            Some(p) => {
+                let ps = p.stencil(phi);
+                let mut out = Stencil::empty(0);
+                for (i, w) in theta_stencil.entries() {
+                    if i == 0 {
+                        out.push(0, w);
+                    } else {
+                        for (j, wj) in ps.entries() {
+                            out.push(i * p.n + j, w * wj);
+                        }
+                    }
+                }
+                out
+            }
         }
     }
 
