@@ -7,7 +7,7 @@
 use npf::bsdf::{Bsdf, NpfBxdf};
 use npf::fit::{fit, FitConfig};
 use npf::loaders::{Format, LoadError, Table, UtiaTable};
-use npf::model::{Layout, Model};
+use npf::model::Layout;
 use npf::render::{psnr, render, RenderOptions};
 use npf::samples::{FitSet, SampleOptions};
 use npf::solver::{Executor, FitOptions};
@@ -145,9 +145,10 @@ fn isotropic_data_gives_phi_flat_factors_and_renders_like_the_isotropic_fit() {
     eprintln!("D phi spread per theta row {sd:.2?}\nG {sg:.2?}");
     // Rows 1 to 4: D at 15..=60 degrees (theta_h = 75 is reached only by the
     // two 75-degree directions in one plane), G at 18..=72 degrees (the
-    // 90-degree control point is beyond the data). Row 0 of either is the
-    // pole, one value by construction (`Grid::extend` reads its first entry
-    // only).
+    // 90-degree control point is beyond the data). G's row 0 is the pole,
+    // one value by construction (`Grid::extend` reads its first entry only);
+    // D's row 0 (theta_h = 0) is seen only at phi_h = 0 exactly and through
+    // its 15-degree neighbours.
     for (r, s) in sd.iter().enumerate().take(5).skip(1) {
         assert!(*s < PHI_FLAT, "D row {r}: {s}");
     }
