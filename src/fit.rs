@@ -354,7 +354,15 @@ pub fn fit(
             samples: set_len.unwrap_or(metrics.samples),
             // JSON has no NaN: a relative error against an all-black table is undefined.
             metrics: Some(metrics).filter(Metrics::is_finite),
-            selection: Some(selection(config, ggx.as_ref())),
+            selection: Some({
+                // The parameter count on the layout actually fitted (the
+                // anisotropic one for anisotropic data).
+                let mut v = selection(config, ggx.as_ref());
+                v["effective_parameters"] = kind
+                    .effective_params(&result.model.layout, config.lobes)
+                    .into();
+                v
+            }),
         };
         Ok(Fitted {
             result,
