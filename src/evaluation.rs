@@ -17,6 +17,7 @@ use crate::bsdf::{Bsdf, BsdfError, NpfBxdf};
 use crate::metrics::Metrics;
 use crate::render::{psnr, render, Image, RenderError, RenderOptions};
 use npf_data_loaders::{MeasuredSamples, MerlTable};
+
 use serde::{Deserialize, Serialize};
 
 pub use crate::bsdf::albedo;
@@ -112,8 +113,10 @@ pub struct Evaluation {
 
 /// What the reference side of a comparison needs, computed once per table.
 pub struct Reference<'a> {
-    /// The reference table.
-    pub table: &'a MerlTable,
+    /// The reference: a measured table (MERL lookup, or UTIA's
+    /// quadrilinear interpolation) or an analytic BRDF; it is rendered and
+    /// its albedo taken, while the sample measures use `samples`.
+    pub table: &'a (dyn Bsdf + Sync),
     /// Its samples.
     pub samples: &'a MeasuredSamples,
     /// Its render.
@@ -125,7 +128,7 @@ pub struct Reference<'a> {
 impl<'a> Reference<'a> {
     /// Renders the reference once.
     pub fn new(
-        table: &'a MerlTable,
+        table: &'a (dyn Bsdf + Sync),
         samples: &'a MeasuredSamples,
         render_opts: RenderOptions,
     ) -> Self {

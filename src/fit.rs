@@ -208,6 +208,17 @@ impl FitConfig {
         Layout::isotropic(self.nodes)
     }
 
+    /// The layout a fit of `samples` uses: [`FitConfig::layout`] for
+    /// isotropic data, [`Layout::anisotropic`] (2010 parameters for three
+    /// lobes; `nodes` does not apply) for anisotropic data such as UTIA tables.
+    pub fn layout_for(&self, samples: &MeasuredSamples) -> Layout {
+        if samples.isotropic {
+            self.layout()
+        } else {
+            Layout::anisotropic()
+        }
+    }
+
     /// The sample-set options (weighting and cut-offs).
     pub fn sample_options(&self) -> SampleOptions {
         SampleOptions {
@@ -348,7 +359,7 @@ fn run_kind(
 ) -> Result<Produced, FitError> {
     config.validate()?;
     check_representable(samples)?;
-    let layout = config.layout();
+    let layout = config.layout_for(samples);
     let so = config.sample_options();
     // Both factor kinds are one run of the shared solver; Independent-G is
     // three lobes with lobe C lighting channel C only, so the objective
@@ -473,7 +484,15 @@ pub fn fit(
             samples: set_len.unwrap_or(metrics.samples),
             // JSON has no NaN: a relative error against an all-black table is undefined.
             metrics: Some(metrics).filter(Metrics::is_finite),
-            selection: Some(selection(config, ggx.as_ref())),
+            selection: Some({
+                // The parameter count on the layout actually fitted (the
+                // anisotropic one for anisotropic data).
+                let mut v = selection(config, ggx.as_ref());
+                v["effective_parameters"] = kind
+                    .effective_params(&result.model.layout, config.lobes)
+                    .into();
+                v
+            }),
         };
         Ok(Fitted {
             result,

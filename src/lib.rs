@@ -144,6 +144,7 @@ pub mod selection;
 pub mod solver;
 pub mod stability;
 pub mod synth;
+pub mod synth_aniso;
 
 pub use error::{Error, Result};
 pub use npf_data_loaders as loaders;

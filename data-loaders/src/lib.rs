@@ -8,6 +8,7 @@
 //! interpolation stencils) is built from that set by the `npf` crate.
 
 pub mod atomic;
+pub mod detect;
 pub mod error;
 pub mod geometry;
 pub mod merl;
@@ -17,6 +18,7 @@ pub mod samples;
 pub mod sniff;
 pub mod utia;
 
+pub use detect::{Format, Table};
 pub use error::LoadError;
 pub use merl::MerlTable;
 pub use rgl::TensorFile;

@@ -179,6 +179,48 @@ impl UtiaTable {
         rgb.iter().all(|v| *v >= 0.0).then_some(rgb)
     }
 
+    /// Quadrilinear interpolation at any (theta_i, phi_i, theta_v, phi_v)
+    /// (radians), as UTIA's own reader does: linear in each elevation on the
+    /// 15-degree nodes (clamped to [0, 75] degrees, so directions past the
+    /// last node take its values), linear and periodic in each azimuth on
+    /// the 7.5-degree nodes. Missing cells count as zero.
+    pub fn interpolate(&self, theta_i: f64, phi_i: f64, theta_v: f64, phi_v: f64) -> [f64; 3] {
+        let t_step = Self::THETA_STEP_DEG.to_radians();
+        let p_step = Self::PHI_STEP_DEG.to_radians();
+        let theta = |t: f64| -> [(usize, f64); 2] {
+            let x = (t / t_step).clamp(0.0, (Self::N_THETA - 1) as f64);
+            let i = (x.floor() as usize).min(Self::N_THETA - 2);
+            let w = x - i as f64;
+            [(i, 1.0 - w), (i + 1, w)]
+        };
+        let phi = |p: f64| -> [(usize, f64); 2] {
+            let x = p.rem_euclid(2.0 * PI) / p_step;
+            let i = (x.floor() as usize).min(Self::N_PHI - 1);
+            let w = (x - i as f64).clamp(0.0, 1.0);
+            [(i, 1.0 - w), ((i + 1) % Self::N_PHI, w)]
+        };
+        let (a, b, c, d) = (theta(theta_i), phi(phi_i), theta(theta_v), phi(phi_v));
+        let mut v = [0.0; 3];
+        for (ia, wa) in a {
+            for (ib, wb) in b {
+                for (ic, wc) in c {
+                    for (id, wd) in d {
+                        let w = wa * wb * wc * wd;
+                        if w == 0.0 {
+                            continue;
+                        }
+                        if let Some(rgb) = self.cell(Self::index(ia, ib, ic, id)) {
+                            for k in 0..3 {
+                                v[k] += w * rgb[k];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        v
+    }
+
     /// Number of cells with no negative channel.
     pub fn valid_cells(&self) -> usize {
         (0..Self::CELLS).filter(|&i| self.cell(i).is_some()).count()
@@ -307,6 +349,26 @@ mod tests {
         };
         assert!((m.angles.theta_i - ti).abs() < 1e-9 && close(m.angles.phi_i, pi));
         assert!((m.angles.theta_o - tv).abs() < 1e-9 && close(m.angles.phi_o, pv));
+    }
+
+    #[test]
+    fn interpolation_hits_nodes_and_wraps() {
+        let t = UtiaTable::from_fn(synthetic);
+        let (ti, pi, tv, pv) = UtiaTable::node_angles(2, 10, 3, 20);
+        let v = t.interpolate(ti, pi, tv, pv);
+        let c = t.cell(UtiaTable::index(2, 10, 3, 20)).unwrap();
+        for k in 0..3 {
+            assert!((v[k] - c[k]).abs() < 1e-12);
+        }
+        // Half-way between phi nodes 47 and 0 (wrap) is their mean.
+        let (ti, _, tv, pv) = UtiaTable::node_angles(1, 0, 2, 5);
+        let half = (352.5f64 + 3.75).to_radians();
+        let v = t.interpolate(ti, half, tv, pv);
+        let a = t.cell(UtiaTable::index(1, 47, 2, 5)).unwrap();
+        let b = t.cell(UtiaTable::index(1, 0, 2, 5)).unwrap();
+        for k in 0..3 {
+            assert!((v[k] - 0.5 * (a[k] + b[k])).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -75,6 +75,8 @@ pub struct NpfBxdf {
     lobes: Vec<Option<Vec<PiecewiseConstant2D>>>,
     /// Selection probabilities, VIEW_NODES rows of (1 + lobes): diffuse first.
     selection: Vec<f64>,
+    /// The 2-D sampler of an anisotropic model (which then has no 1-D tables).
+    aniso: Option<super::anisotropic::AnisoSampler>,
 }
 
 fn dot(a: Vec3, b: Vec3) -> f64 {
@@ -108,6 +110,17 @@ impl NpfBxdf {
     /// file already is), so a bad model is an error, never a panic.
     pub fn new(model: Model) -> Result<Self, BsdfError> {
         model.validate().map_err(BsdfError::InvalidModel)?;
+        if !model.layout.is_isotropic() {
+            let aniso = Some(super::anisotropic::AnisoSampler::new(&model));
+            let lobes = vec![None; model.lobes.len()];
+            return Ok(NpfBxdf {
+                model,
+                edges: Vec::new(),
+                lobes,
+                selection: Vec::new(),
+                aniso,
+            });
+        }
         let edges = t_edges(&model);
         let lobes = (0..model.lobes.len())
             .map(|m| {
@@ -122,6 +135,7 @@ impl NpfBxdf {
             edges,
             lobes,
             selection: Vec::new(),
+            aniso: None,
         };
         bxdf.selection = bxdf.selection_table();
         Ok(bxdf)
@@ -251,6 +265,9 @@ impl NpfBxdf {
 
     /// Selection probabilities at wo: diffuse first, then one per lobe.
     pub fn selection_probabilities(&self, wo: Vec3) -> Vec<f64> {
+        if let Some(a) = self.aniso.as_ref().filter(|_| wo[2] > 0.0) {
+            return a.selection().to_vec();
+        }
         if !(wo[2] > 0.0) {
             return vec![0.0; self.components()];
         }
@@ -271,6 +288,9 @@ impl NpfBxdf {
     /// draws wi given wo; zero when either direction is at or below the
     /// horizon. Usable as the BSDF pdf in multiple importance sampling.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        if let Some(a) = &self.aniso {
+            return a.pdf(wo, wi);
+        }
         if !(wo[2] > 0.0 && wi[2] > 0.0) {
             return 0.0;
         }
@@ -315,6 +335,9 @@ impl NpfBxdf {
     /// [0, 1)) the direction within it. See [`BxdfSample`] for draws that
     /// leave the hemisphere.
     pub fn sample(&self, wo: Vec3, u_lobe: f64, u: [f64; 2]) -> BsdfSample {
+        if let Some(a) = &self.aniso {
+            return a.sample(&self.model, wo, u_lobe, u);
+        }
         if !(wo[2] > 0.0) {
             return BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
         }
@@ -362,6 +385,9 @@ impl NpfBxdf {
     /// hemisphere), by Gauss-Legendre quadrature over each table cell of
     /// the closed-form azimuthal fraction.
     pub fn lost_mass(&self, wo: Vec3) -> f64 {
+        if let Some(a) = &self.aniso {
+            return a.lost_mass(wo, 512);
+        }
         if !(wo[2] > 0.0) {
             return 1.0;
         }

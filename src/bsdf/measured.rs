@@ -2,7 +2,7 @@
 //! for missing cells and below the horizon, drawn by cosine-weighted
 //! hemisphere sampling (the table has no sampler of its own).
 
-use super::{cosine_hemisphere, cosine_hemisphere_pdf, Bsdf, BsdfSample, Component};
+use super::{cosine_draw, cosine_pdf_for, Bsdf, BsdfSample};
 use npf_data_loaders::geometry::{half_diff_from_directions, Angles, Vec3};
 use npf_data_loaders::MerlTable;
 
@@ -16,19 +16,11 @@ impl Bsdf for MerlTable {
     }
 
     fn sample(&self, wo: Vec3, _uc: f64, u: [f64; 2]) -> Option<BsdfSample> {
-        if !(wo[2] > 0.0) {
-            return None;
-        }
-        let wi = cosine_hemisphere(u);
-        let s = BsdfSample::new(wi, self.eval(wo, wi), self.pdf(wo, wi), Component::Diffuse);
-        (!s.is_lost()).then_some(s)
+        cosine_draw(self, wo, u)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
-        if !(wo[2] > 0.0) {
-            return 0.0;
-        }
-        cosine_hemisphere_pdf(wi)
+        cosine_pdf_for(wo, wi)
     }
 
     fn eval_angles(&self, a: &Angles) -> [f64; 3] {

@@ -22,10 +22,13 @@
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod anisotropic;
 mod factor;
 mod ggx;
 mod measured;
+mod utia;
 
+pub use anisotropic::{AnisoSampler, PHI_SUB, THETA_SUB};
 pub use factor::{
     NpfBxdf, COVERAGE_SHARE, GL4_W, GL4_X, NEGLIGIBLE_CELL, PHI_CELLS, SELECTION_FLOOR, SUBCELLS,
     VIEW_NODES,
@@ -171,6 +174,26 @@ pub fn cosine_hemisphere_pdf(wi: Vec3) -> f64 {
     } else {
         0.0
     }
+}
+
+/// A cosine-weighted draw for a BSDF without a sampler of its own (the
+/// measured tables, the analytic references); `None` when `wo` is at or
+/// below the horizon or the draw carries no light.
+pub(crate) fn cosine_draw(bsdf: &dyn Bsdf, wo: Vec3, u: [f64; 2]) -> Option<BsdfSample> {
+    if !(wo[2] > 0.0) {
+        return None;
+    }
+    let wi = cosine_hemisphere(u);
+    let s = BsdfSample::new(wi, bsdf.eval(wo, wi), cosine_pdf_for(wo, wi), Component::Diffuse);
+    (!s.is_lost()).then_some(s)
+}
+
+/// The density of [`cosine_draw`]: zero for `wo` at or below the horizon.
+pub(crate) fn cosine_pdf_for(wo: Vec3, wi: Vec3) -> f64 {
+    if !(wo[2] > 0.0) {
+        return 0.0;
+    }
+    cosine_hemisphere_pdf(wi)
 }
 
 /// Reflection of `wo` about the unit vector `h`.

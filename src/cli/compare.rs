@@ -1,6 +1,6 @@
-//! `npf compare REF.binary MODEL_OR_TABLE [--images DIR]`: every error
+//! `npf compare REF.{binary,bin} MODEL_OR_TABLE [--images DIR]`: every error
 //! measure of `docs/evaluation.md` for a model file (.json, .npfb) or a
-//! second MERL table against a reference table, and optionally the two
+//! second measured table against a reference table (MERL or UTIA), and optionally the two
 //! sphere renders and their difference as PNG.
 
 use super::png::encode_png;
@@ -10,16 +10,19 @@ use crate::modelfile::{self, Form};
 use crate::render::{difference_rgb8, Image, RenderOptions};
 use clap::Args;
 use npf_data_loaders::atomic::write_bytes_atomic;
-use npf_data_loaders::MerlTable;
 use std::path::{Path, PathBuf};
 
 /// `npf compare`'s arguments.
 #[derive(Args, Debug)]
 pub struct CompareArgs {
-    /// Reference measured BRDF (MERL .binary).
+    /// Reference measured BRDF (MERL .binary or UTIA .bin; a UTIA table is
+    /// rendered with its quadrilinear interpolation).
     pub reference: PathBuf,
-    /// Model file (.json, .npfb) or MERL table (.binary) to compare.
+    /// Model file (.json, .npfb) or measured table to compare.
     pub test: PathBuf,
+    /// Read the tables as this format instead of detecting it.
+    #[arg(long, value_enum)]
+    pub format: Option<super::FormatArg>,
     /// Grazing cut-off of the sample metrics (degrees).
     #[arg(long, default_value_t = 85.0)]
     pub max_theta: f64,
@@ -120,33 +123,20 @@ pub fn run(args: CompareArgs) -> CliResult {
         let outs: Vec<&Path> = outs.iter().map(|p| p.as_path()).collect();
         check_outputs(&outs, &[&args.reference, &args.test], args.force)?;
     }
-    let table = MerlTable::read(&args.reference)?;
-    let samples = table.samples(&args.reference.display().to_string());
-    if samples.samples.is_empty() {
-        return Err(CliError::Message(format!(
-            "{}: the table holds no valid samples",
-            args.reference.display()
-        )));
-    }
+    let (table, samples) = super::read_measured(&args.reference, args.format)?;
     let opts = RenderOptions {
         res: args.res,
         n_theta: args.n_theta,
     };
-    let (eval, image, reference) = if Form::of(&args.test).is_ok() {
+    let reference = Reference::new(super::table_bsdf(&table), &samples, opts);
+    let (eval, image) = if Form::of(&args.test).is_ok() {
         let file = modelfile::read(&args.test)?;
-        let reference = Reference::new(&table, &samples, opts);
-        let (e, i) = reference
-            .evaluate_model(args.max_theta, &file.model)
-            .map_err(|e| CliError::Message(e.to_string()))?;
-        (e, i, reference)
+        reference.evaluate_model(args.max_theta, &file.model)
     } else {
-        let other = MerlTable::read(&args.test)?;
-        let reference = Reference::new(&table, &samples, opts);
-        let (e, i) = reference
-            .evaluate_table(args.max_theta, &other)
-            .map_err(|e| CliError::Message(e.to_string()))?;
-        (e, i, reference)
-    };
+        let other = npf_data_loaders::Table::read(&args.test, args.format.map(Into::into))?;
+        reference.evaluate(args.max_theta, super::table_bsdf(&other))
+    }
+    .map_err(|e| CliError::Message(e.to_string()))?;
     if args.json {
         println!(
             "{}",

@@ -7,8 +7,8 @@ use crate::samples::Weighting;
 use crate::selection::{self, Candidate, Scores, Target};
 use crate::solver::{GMethod, SweepReport, MAX_LOBES};
 use clap::Args;
-use npf_data_loaders::{MeasuredSamples, MerlTable};
-use std::path::{Path, PathBuf};
+use npf_data_loaders::MeasuredSamples;
+use std::path::PathBuf;
 
 /// The library's defaults, which every flag below shows and falls back to.
 fn defaults() -> FitConfig {
@@ -169,8 +169,12 @@ pub fn fit_with_progress(
 /// `npf fit`'s arguments.
 #[derive(Args, Debug)]
 pub struct FitArgs {
-    /// Measured BRDF (MERL .binary).
+    /// Measured BRDF: MERL .binary (isotropic layout) or UTIA .bin
+    /// (anisotropic layout, 2010 parameters for three lobes).
     pub input: PathBuf,
+    /// Read the input as this format instead of detecting it.
+    #[arg(long, value_enum)]
+    pub format: Option<super::FormatArg>,
     /// Output model; the extension picks the form (.json or .npfb).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -230,37 +234,23 @@ pub fn print_summary(f: &Fitted) {
     );
 }
 
-/// Read a MERL table as samples, refusing one without any valid cell.
-pub fn load_table(path: &Path) -> Result<MeasuredSamples, CliError> {
-    let table = MerlTable::read(path)?;
-    let samples = table.samples(&path.display().to_string());
-    if samples.samples.is_empty() {
-        return Err(CliError::Message(format!(
-            "{}: the table holds no valid samples (all cells missing)",
-            path.display()
-        )));
-    }
-    Ok(samples)
-}
-
 /// Run `npf fit`.
 pub fn run(args: FitArgs) -> CliResult {
     modelfile::Form::of(&args.output)?;
     let config = args.config.config(args.model);
     config.validate()?;
     check_outputs(&[&args.output], &[&args.input], args.force)?;
-    let samples = load_table(&args.input)?;
+    let (table, samples) = super::read_measured(&args.input, args.format)?;
     let fitted = match (args.target, args.budget) {
         (Some(target), _) => {
             // A rendering-PSNR target renders the input table once as the reference.
-            let table = if target.needs_render() {
-                Some(MerlTable::read(&args.input)?)
-            } else {
-                None
-            };
-            let reference = table
-                .as_ref()
-                .map(|t| crate::evaluation::Reference::new(t, &samples, Default::default()));
+            let reference = target.needs_render().then(|| {
+                crate::evaluation::Reference::new(
+                    super::table_bsdf(&table),
+                    &samples,
+                    Default::default(),
+                )
+            });
             select(
                 &samples,
                 &args,

@@ -1,16 +1,19 @@
-//! `npf info FILE`: what a MERL table or a model file holds.
+//! `npf info FILE`: what a measured table (MERL, UTIA) or a model file holds.
 
-use super::{CliError, CliResult};
+use super::CliResult;
 use crate::modelfile::{self, Form};
 use clap::Args;
-use npf_data_loaders::MerlTable;
+use npf_data_loaders::{MerlTable, UtiaTable};
 use std::path::PathBuf;
 
 /// `npf info`'s arguments.
 #[derive(Args, Debug)]
 pub struct InfoArgs {
-    /// A MERL table (.binary) or a model (.json, .npfb).
+    /// A measured table (MERL .binary, UTIA .bin) or a model (.json, .npfb).
     pub file: PathBuf,
+    /// Read a table as this format instead of detecting it.
+    #[arg(long, value_enum)]
+    pub format: Option<super::FormatArg>,
 }
 
 /// Run `npf info`.
@@ -62,44 +65,48 @@ pub fn run(args: InfoArgs) -> CliResult {
         }
         return Ok(());
     }
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    if ext.eq_ignore_ascii_case("binary") || bytes == MerlTable::FILE_BYTES {
-        let table = MerlTable::read(path)?;
-        let valid = table.valid_cells();
-        let mut max = [0.0f64; 3];
-        let mut sum = [0.0f64; 3];
-        for i in 0..MerlTable::CELLS {
-            if let Some(v) = table.cell(i) {
-                for c in 0..3 {
-                    max[c] = max[c].max(v[c]);
-                    sum[c] += v[c];
-                }
-            }
-        }
-        println!("{}: MERL table, valid", path.display());
-        println!("  file size      {bytes} bytes");
-        println!("  dimensions     90 x 90 x 180 (theta_h, theta_d, phi_d), 3 channels");
-        println!(
-            "  valid cells    {valid} of {} ({} missing)",
+    let table = npf_data_loaders::Table::read(path, args.format.map(Into::into))?;
+    let (name, dims, cells, cell): (_, _, _, Box<dyn Fn(usize) -> Option<[f64; 3]>>) = match &table {
+        npf_data_loaders::Table::Merl(t) => (
+            "MERL table",
+            "90 x 90 x 180 (theta_h, theta_d, phi_d)",
             MerlTable::CELLS,
-            MerlTable::CELLS - valid
-        );
-        println!(
-            "  max (1/sr)     {:.4e} {:.4e} {:.4e}",
-            max[0], max[1], max[2]
-        );
-        let n = valid.max(1) as f64;
-        println!(
-            "  mean (1/sr)    {:.4e} {:.4e} {:.4e}",
-            sum[0] / n,
-            sum[1] / n,
-            sum[2] / n
-        );
-        return Ok(());
+            Box::new(|i| t.cell(i)),
+        ),
+        npf_data_loaders::Table::Utia(t) => (
+            "UTIA table",
+            "6 x 48 x 6 x 48 (theta_i, phi_i, theta_v, phi_v; 15 / 7.5 deg)",
+            UtiaTable::CELLS,
+            Box::new(|i| t.cell(i)),
+        ),
+    };
+    let mut valid = 0;
+    let mut max = [0.0f64; 3];
+    let mut sum = [0.0f64; 3];
+    for v in (0..cells).filter_map(cell) {
+        valid += 1;
+        for c in 0..3 {
+            max[c] = max[c].max(v[c]);
+            sum[c] += v[c];
+        }
     }
-    Err(CliError::Message(format!(
-        "{}: not a MERL table (.binary) or an npf model (.json, .npfb): it is {}",
-        path.display(),
-        npf_data_loaders::sniff::describe(path)
-    )))
+    println!("{}: {name}, valid", path.display());
+    println!("  file size      {bytes} bytes");
+    println!("  dimensions     {dims}, 3 channels");
+    println!(
+        "  valid cells    {valid} of {cells} ({} missing)",
+        cells - valid
+    );
+    println!(
+        "  max            {:.4e} {:.4e} {:.4e}",
+        max[0], max[1], max[2]
+    );
+    let n = valid.max(1) as f64;
+    println!(
+        "  mean           {:.4e} {:.4e} {:.4e}",
+        sum[0] / n,
+        sum[1] / n,
+        sum[2] / n
+    );
+    Ok(())
 }

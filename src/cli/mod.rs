@@ -41,6 +41,51 @@ pub enum CliError {
     Message(String),
 }
 
+/// `--format`: read a measured table as this format instead of detecting
+/// it (see [`npf_data_loaders::detect`]).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FormatArg {
+    /// MERL .binary (isotropic).
+    Merl,
+    /// UTIA .bin (anisotropic).
+    Utia,
+}
+
+impl From<FormatArg> for npf_data_loaders::Format {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Merl => npf_data_loaders::Format::Merl,
+            FormatArg::Utia => npf_data_loaders::Format::Utia,
+        }
+    }
+}
+
+/// Reads a measured table (MERL or UTIA, detected unless `format` forces
+/// one) and its samples, refusing one without any valid cell.
+pub fn read_measured(
+    path: &Path,
+    format: Option<FormatArg>,
+) -> Result<(npf_data_loaders::Table, npf_data_loaders::MeasuredSamples), CliError> {
+    let table = npf_data_loaders::Table::read(path, format.map(Into::into))?;
+    let samples = table.samples(&path.display().to_string());
+    if samples.samples.is_empty() {
+        return Err(CliError::Message(format!(
+            "{}: the table holds no valid samples (all cells missing)",
+            path.display()
+        )));
+    }
+    Ok((table, samples))
+}
+
+/// The table as the reference BSDF of a comparison (MERL lookup, UTIA
+/// quadrilinear interpolation).
+pub fn table_bsdf(table: &npf_data_loaders::Table) -> &(dyn crate::bsdf::Bsdf + Sync) {
+    match table {
+        npf_data_loaders::Table::Merl(t) => t,
+        npf_data_loaders::Table::Utia(t) => t,
+    }
+}
+
 /// What a command returns.
 pub type CliResult = Result<(), CliError>;
 

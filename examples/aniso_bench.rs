@@ -1,0 +1,119 @@
+//! Anisotropic benchmark: fits the 2010-parameter model (`npf fit`'s
+//! defaults on a UTIA table) to every material of
+//! `npf::synth_aniso::catalogue()` and prints a Markdown row per material:
+//! fit seconds, sweeps, numerical PSNR at the table's nodes, and three
+//! rendering PSNRs of the sphere (its tangent field: see `npf::render`):
+//! fit vs the analytic BRDF, the table's own quadrilinear interpolation vs
+//! the analytic BRDF, and fit vs the interpolated table. Peak memory is the
+//! process's (Linux VmHWM) at the end.
+//!
+//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--images DIR] [--only NAME] [--d-nodes N]
+//!
+//! `--d-nodes N` fits a finer layout instead (an experiment, not the
+//! 2010-parameter model): D on N uniform theta_h nodes 90/N degrees apart
+//! times 48 phi nodes, G and F as in `Layout::anisotropic()`.
+//!
+//! With --images, writes DIR/NAME.png: analytic reference | fit | difference (x8).
+
+use npf::bsdf::NpfBxdf;
+use npf::cli::png::encode_png;
+use npf::evaluation::numeric_psnr;
+use npf::fit::{fit, FitConfig};
+use npf::grid::{Axis, Grid};
+use npf::model::Layout;
+use npf::samples::FitSet;
+use npf::solver::Executor;
+use npf::render::{difference_rgb8, psnr, render, RenderOptions};
+use npf::synth_aniso::catalogue;
+use std::time::Instant;
+
+fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .map(|v| v.parse().unwrap_or_else(|_| panic!("{name}: bad value {v}")))
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let threads: usize = arg(&args, "--threads").unwrap_or(0);
+    let images: Option<String> = arg(&args, "--images");
+    let only: Option<String> = arg(&args, "--only");
+    let mut config = FitConfig {
+        threads,
+        ..FitConfig::default()
+    };
+    if let Some(s) = arg(&args, "--max-sweeps") {
+        config.max_sweeps = s;
+    }
+    let d_nodes: Option<usize> = arg(&args, "--d-nodes");
+    let opts = RenderOptions::default();
+    println!("| material | fit s | sweeps | num. PSNR dB | render PSNR fit vs analytic | table interp. vs analytic | fit vs table interp. |");
+    println!("|---|---|---|---|---|---|---|");
+    let mut fit_vs_analytic = Vec::new();
+    for m in catalogue() {
+        if only.as_ref().is_some_and(|o| *o != m.name) {
+            continue;
+        }
+        let table = m.table();
+        let samples = table.samples(&m.name);
+        let t = Instant::now();
+        let result = match d_nodes {
+            None => fit(&samples, &config, &mut |_, _| {}).expect("fit").result,
+            Some(n) => {
+                let layout = Layout {
+                    d: Grid::plane(Axis::Uniform { n }, 48),
+                    ..Layout::anisotropic()
+                };
+                let set = FitSet::build(&samples, layout, config.sample_options()).expect("set");
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("pool")
+                    .install(|| Executor::new(&set, config.fit_options()).run())
+                    .expect("fit")
+            }
+        };
+        let secs = t.elapsed().as_secs_f64();
+        let bxdf = NpfBxdf::new(result.model.clone()).expect("valid model");
+        let num = numeric_psnr(&samples, config.max_theta, &bxdf);
+        let img_ref = render(opts, &m);
+        let img_tab = render(opts, &table);
+        let img_fit = render(opts, &bxdf);
+        let p_fa = psnr(&img_ref, &img_fit).unwrap();
+        let p_ta = psnr(&img_ref, &img_tab).unwrap();
+        let p_ft = psnr(&img_tab, &img_fit).unwrap();
+        fit_vs_analytic.push((p_fa, m.name.clone()));
+        println!(
+            "| {} | {secs:.2} | {} | {num:.2} | {p_fa:.2} | {p_ta:.2} | {p_ft:.2} |",
+            m.name,
+            result.history.len()
+        );
+        if let Some(dir) = &images {
+            let r = opts.res;
+            let parts = [
+                img_ref.to_rgb8(),
+                img_fit.to_rgb8(),
+                difference_rgb8(&img_ref, &img_fit, 8.0),
+            ];
+            let mut buf = Vec::with_capacity(3 * r * r * 3);
+            for row in 0..r {
+                for p in &parts {
+                    buf.extend_from_slice(&p[3 * r * row..3 * r * (row + 1)]);
+                }
+            }
+            let png = encode_png(3 * r as u32, r as u32, &buf).expect("png");
+            let path = std::path::Path::new(dir).join(format!("{}.png", m.name));
+            npf::loaders::atomic::write_bytes_atomic(&path, true, &png).expect("write png");
+        }
+    }
+    fit_vs_analytic.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some((worst, name)) = fit_vs_analytic.first() {
+        let median = fit_vs_analytic[fit_vs_analytic.len() / 2].0;
+        println!("\nrendering PSNR (fit vs analytic): median {median:.2} dB, worst {worst:.2} dB ({name})");
+    }
+    let hwm = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM")).map(str::to_string));
+    println!("peak memory: {}", hwm.unwrap_or_else(|| "n/a".into()));
+}
