@@ -544,7 +544,9 @@ fn messages_say_what_a_file_is_when_it_is_not_what_was_expected() {
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["fit", s(&utia), "-o", s(&out)],
-            "it looks like a UTIA table",
+            // The size is a UTIA table's: the message says so (and how to
+            // force a format).
+            "is a UTIA table's",
         ),
         (
             vec!["fit", s(&as_table), "-o", s(&out)],

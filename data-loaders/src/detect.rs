@@ -97,11 +97,18 @@ impl Table {
         let format = match hint {
             Some(f) => f,
             None => {
-                let meta = std::fs::metadata(path).map_err(|e| LoadError::io(path, e))?;
-                if !meta.is_file() {
-                    return Err(LoadError::invalid(path, "not a regular file"));
-                }
-                Format::detect(path, meta.len())?
+                // Says what a directory, FIFO or device is, without opening
+                // it for a blocking read.
+                let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+                let expected = if ext.eq_ignore_ascii_case("binary") {
+                    "a MERL table"
+                } else if ext.eq_ignore_ascii_case("bin") {
+                    "a UTIA table"
+                } else {
+                    "a measured table"
+                };
+                let (_, size) = crate::sniff::open_regular(path, expected)?;
+                Format::detect(path, size)?
             }
         };
         Ok(match format {
