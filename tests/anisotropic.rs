@@ -78,7 +78,7 @@ fn utia_round_trip_detection_and_malformed_files() {
     let e = Table::read(&junk, None).unwrap_err().to_string();
     assert!(e.contains("junk") && e.contains("5 bytes"), "{e}");
     let e = Table::read(dir.path(), None).unwrap_err().to_string();
-    assert!(e.contains("not a regular file"), "{e}");
+    assert!(e.contains("is a directory, not a measured table"), "{e}");
 }
 
 /// The table of a known 2010-parameter model is fitted back closely (the
