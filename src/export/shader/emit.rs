@@ -192,6 +192,13 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
                 }
                 s += "    REAL v = 0.0;\n";
                 s += "    for (int k = 0; k < 4; k++) {\n";
+                // The pole row of a Catmull-Rom (G) axis is one direction
+                // whatever phi: one value, the row's first (Grid::extend).
+                if matches!(grid.theta, Axis::CatmullRom { .. }) {
+                    s += &format!(
+                        "        if (ti[k] == 0) {{ if (tw[k] != 0.0) v += tw[k] * @{table}[base]; continue; }}\n"
+                    );
+                }
                 s += "        REAL a = tw[k] * pw0; REAL b = tw[k] * pw1;\n";
                 s +=
                     &format!("        if (a != 0.0) v += a * @{table}[base + ti[k] * {n} + p0];\n");
