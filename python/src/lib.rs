@@ -392,7 +392,7 @@ impl Bsdf for Rotated<'_> {
 
 /// Export formats of [`PyModel::export`], by extension. The `.bsdf` export
 /// of issue 13 joins here: one more arm in `export_to`.
-const EXPORT_FORMATS: &[&str] = &["json", "npfb", "binary"];
+const EXPORT_FORMATS: &[&str] = &["json", "npfb", "binary", "bsdf", "brdf", "glsl", "h"];
 
 fn export_to(file: &ModelFile, path: &Path, overwrite: bool) -> PyResult<()> {
     let ext = path
@@ -405,6 +405,19 @@ fn export_to(file: &ModelFile, path: &Path, overwrite: bool) -> PyResult<()> {
         "binary" => npf::reconstruct::to_merl(&file.model)
             .write(path, overwrite)
             .map_err(load_error),
+        // The renderer exports (RGL tensor file, BRDF Explorer, GLSL, C
+        // header) at npf export's default resolutions.
+        "bsdf" | "brdf" | "glsl" | "h" => npf::export::export(
+            &file.model,
+            path,
+            &npf::export::ExportOptions::default(),
+            overwrite,
+        )
+        .map(|_| ())
+        .map_err(|e| match e {
+            npf::export::ExportError::Write(l) => load_error(l),
+            other => value_error(format!("{}: {other}", path.display())),
+        }),
         _ => Err(value_error(format!(
             "{}: unknown export format (supported: {})",
             path.display(),

@@ -122,6 +122,21 @@ def test_save_load_and_export_round_trip(model, tmp_path):
         model.export(tmp_path / "m.xyz")
 
 
+def test_renderer_exports_write_what_npf_export_writes(model, tmp_path):
+    # Model.export and `npf export` share the library's export module: the
+    # same model gives the same bytes.
+    model.save(tmp_path / "m.json")
+    for ext in (".bsdf", ".brdf", ".glsl", ".h"):
+        assert ext in npf.EXPORT_FORMATS
+        model.export(tmp_path / f"py{ext}")
+        out = tmp_path / f"cli{ext}"
+        run_npf("export", tmp_path / "m.json", "-o", out, "--quiet")
+        assert (tmp_path / f"py{ext}").read_bytes() == out.read_bytes()
+        with pytest.raises(FileExistsError):
+            model.export(tmp_path / f"py{ext}")
+    assert (tmp_path / "py.bsdf").read_bytes().startswith(b"tensor_file")
+
+
 def test_merl_tables_round_trip_and_match_the_model(model, tmp_path):
     table = model.reconstruct()
     assert table.shape == (3, 90, 90, 180)
