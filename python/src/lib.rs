@@ -63,6 +63,12 @@ fn load_error(e: LoadError) -> PyErr {
             }
         }
         LoadError::Exists { .. } => PyOSError::new_err((17, e.to_string())),
+        // A directory (EISDIR, so IsADirectoryError matches), FIFO, device
+        // or dangling link where a file was expected: a file-system matter.
+        LoadError::NotRegular { kind, .. } => {
+            let errno = if kind.contains("directory") { 21 } else { 22 };
+            PyOSError::new_err((errno, e.to_string()))
+        }
         _ => value_error(e.to_string()),
     }
 }
