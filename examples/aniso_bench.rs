@@ -21,9 +21,9 @@ use npf::evaluation::numeric_psnr;
 use npf::fit::{fit, FitConfig};
 use npf::grid::{Axis, Grid};
 use npf::model::Layout;
+use npf::render::{difference_rgb8, psnr, render, RenderOptions};
 use npf::samples::FitSet;
 use npf::solver::Executor;
-use npf::render::{difference_rgb8, psnr, render, RenderOptions};
 use npf::synth_aniso::catalogue;
 use std::time::Instant;
 
@@ -31,7 +31,10 @@ fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
     args.iter()
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1))
-        .map(|v| v.parse().unwrap_or_else(|_| panic!("{name}: bad value {v}")))
+        .map(|v| {
+            v.parse()
+                .unwrap_or_else(|_| panic!("{name}: bad value {v}"))
+        })
 }
 
 fn main() {
@@ -114,6 +117,10 @@ fn main() {
     }
     let hwm = std::fs::read_to_string("/proc/self/status")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM")).map(str::to_string));
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM"))
+                .map(str::to_string)
+        });
     println!("peak memory: {}", hwm.unwrap_or_else(|| "n/a".into()));
 }

@@ -269,7 +269,10 @@ impl FitConfig {
                 value: self.epsilon,
             });
         }
-        for (name, v) in [("max_theta", self.max_theta), ("max_theta_h", self.max_theta_h)] {
+        for (name, v) in [
+            ("max_theta", self.max_theta),
+            ("max_theta_h", self.max_theta_h),
+        ] {
             if !(v > 0.0 && v <= 90.0) {
                 return Err(FitError::Range {
                     name,
@@ -343,7 +346,10 @@ fn check_result(
     if let Err(e) = result.model.validate() {
         return Err(bad(format!("the fitted model cannot be stored: {e}")));
     }
-    if !result.objective.is_finite() || !metrics.cos_rmse.is_finite() || !metrics.log_rmse.is_finite() {
+    if !result.objective.is_finite()
+        || !metrics.cos_rmse.is_finite()
+        || !metrics.log_rmse.is_finite()
+    {
         return Err(bad(format!(
             "the fit's objective ({:e}) or errors (RMSE {:e}, log RMSE {:e}) are not finite",
             result.objective, metrics.cos_rmse, metrics.log_rmse

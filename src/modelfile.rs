@@ -389,7 +389,9 @@ pub fn read(path: &Path) -> Result<ModelFile, ModelFileError> {
             // Name what an oversized file is, if it is a known kind (a MERL
             // table, most likely).
             LoadError::TooLarge { .. } => match npf_data_loaders::sniff::describe(path) {
-                found if !found.starts_with("a binary file") && !found.starts_with("a text file") => {
+                found
+                    if !found.starts_with("a binary file") && !found.starts_with("a text file") =>
+                {
                     LoadError::WrongFormat {
                         path: path.to_path_buf(),
                         expected: what,
@@ -402,7 +404,10 @@ pub fn read(path: &Path) -> Result<ModelFile, ModelFileError> {
         }
     })?;
     let looks_wrong = match form {
-        Form::Json => !bytes.iter().find(|b| !b.is_ascii_whitespace()).is_some_and(|&b| b == b'{'),
+        Form::Json => !bytes
+            .iter()
+            .find(|b| !b.is_ascii_whitespace())
+            .is_some_and(|&b| b == b'{'),
         Form::Binary => !bytes.starts_with(MAGIC),
     };
     if looks_wrong && !bytes.is_empty() {

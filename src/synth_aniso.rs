@@ -115,19 +115,29 @@ impl AnalyticLobe {
                     * aniso_ggx_g1(co, azimuth(wo) - tangent, ax, ay);
                 std::array::from_fn(|c| ks[c] * d * schlick(f0[c], hk) * g / (4.0 * ci * co))
             }
-            AnalyticLobe::Ward { ax, ay, tangent, ks } => {
+            AnalyticLobe::Ward {
+                ax,
+                ay,
+                tangent,
+                ks,
+            } => {
                 let c2 = h[2] * h[2];
                 let p = azimuth(h) - tangent;
-                let e = (1.0 - c2) / c2 * (p.cos().powi(2) / (ax * ax) + p.sin().powi(2) / (ay * ay));
+                let e =
+                    (1.0 - c2) / c2 * (p.cos().powi(2) / (ax * ax) + p.sin().powi(2) / (ay * ay));
                 let v = (-e).exp() / (4.0 * PI * ax * ay * (ci * co).sqrt());
                 ks.map(|k| k * v)
             }
-            AnalyticLobe::AshikhminShirley { nu, nv, tangent, rs } => {
+            AnalyticLobe::AshikhminShirley {
+                nu,
+                nv,
+                tangent,
+                rs,
+            } => {
                 let p = azimuth(h) - tangent;
                 let c2 = h[2] * h[2];
                 let expo = if c2 < 1.0 {
-                    (nu * p.cos().powi(2) + nv * p.sin().powi(2)) * (1.0 - c2).max(0.0)
-                        / (1.0 - c2)
+                    (nu * p.cos().powi(2) + nv * p.sin().powi(2)) * (1.0 - c2).max(0.0) / (1.0 - c2)
                 } else {
                     0.5 * (nu + nv)
                 };
@@ -220,25 +230,100 @@ pub fn catalogue() -> Vec<AnalyticBrdf> {
     let gold = [0.95, 0.7, 0.35];
     let white = [0.04; 3];
     vec![
-        m("ggx-iso-0.25", [0.3, 0.2, 0.1], vec![ggx(0.25, 0.25, 0.0, [1.0; 3], white)]),
-        m("ggx-0.1x0.3-t0", [0.05, 0.05, 0.1], vec![ggx(0.1, 0.3, 0.0, [1.0; 3], gold)]),
-        m("ggx-0.1x0.3-t30", [0.05, 0.05, 0.1], vec![ggx(0.1, 0.3, 30.0, [1.0; 3], gold)]),
-        m("ggx-0.1x0.3-t45", [0.05, 0.05, 0.1], vec![ggx(0.1, 0.3, 45.0, [1.0; 3], gold)]),
-        m("ggx-0.12x0.48-t90", [0.1, 0.1, 0.1], vec![ggx(0.12, 0.48, 90.0, [1.0; 3], [0.9; 3])]),
-        m("ggx-0.2x0.5-t60", [0.2, 0.05, 0.05], vec![ggx(0.2, 0.5, 60.0, [1.0; 3], white)]),
-        m("ggx-0.3x0.6-t20", [0.1, 0.3, 0.1], vec![ggx(0.3, 0.6, 20.0, [1.0; 3], [0.5, 0.5, 0.6])]),
-        m("ward-0.15x0.35-t0", [0.1, 0.1, 0.05], vec![AnalyticLobe::Ward { ax: 0.15, ay: 0.35, tangent: 0.0, ks: [0.6, 0.5, 0.4] }]),
-        m("ward-0.12x0.3-t45", [0.05, 0.1, 0.2], vec![AnalyticLobe::Ward { ax: 0.12, ay: 0.3, tangent: 45f64.to_radians(), ks: [0.5; 3] }]),
-        m("as-100x10-t0", [0.1, 0.05, 0.05], vec![AnalyticLobe::AshikhminShirley { nu: 100.0, nv: 10.0, tangent: 0.0, rs: [0.8, 0.6, 0.4] }]),
-        m("as-20x200-t30", [0.05, 0.05, 0.05], vec![AnalyticLobe::AshikhminShirley { nu: 20.0, nv: 200.0, tangent: 30f64.to_radians(), rs: [0.6; 3] }]),
-        m("mix-ggx-t0-t60", [0.05, 0.08, 0.1], vec![
-            ggx(0.12, 0.35, 0.0, [0.7; 3], gold),
-            ggx(0.4, 0.2, 60.0, [0.5; 3], white),
-        ]),
-        m("sheen-ggx-0.2x0.4", [0.1, 0.05, 0.15], vec![
-            ggx(0.2, 0.4, 0.0, [1.0; 3], white),
-            AnalyticLobe::Sheen { r: 0.4, color: [0.3, 0.3, 0.5] },
-        ]),
+        m(
+            "ggx-iso-0.25",
+            [0.3, 0.2, 0.1],
+            vec![ggx(0.25, 0.25, 0.0, [1.0; 3], white)],
+        ),
+        m(
+            "ggx-0.1x0.3-t0",
+            [0.05, 0.05, 0.1],
+            vec![ggx(0.1, 0.3, 0.0, [1.0; 3], gold)],
+        ),
+        m(
+            "ggx-0.1x0.3-t30",
+            [0.05, 0.05, 0.1],
+            vec![ggx(0.1, 0.3, 30.0, [1.0; 3], gold)],
+        ),
+        m(
+            "ggx-0.1x0.3-t45",
+            [0.05, 0.05, 0.1],
+            vec![ggx(0.1, 0.3, 45.0, [1.0; 3], gold)],
+        ),
+        m(
+            "ggx-0.12x0.48-t90",
+            [0.1, 0.1, 0.1],
+            vec![ggx(0.12, 0.48, 90.0, [1.0; 3], [0.9; 3])],
+        ),
+        m(
+            "ggx-0.2x0.5-t60",
+            [0.2, 0.05, 0.05],
+            vec![ggx(0.2, 0.5, 60.0, [1.0; 3], white)],
+        ),
+        m(
+            "ggx-0.3x0.6-t20",
+            [0.1, 0.3, 0.1],
+            vec![ggx(0.3, 0.6, 20.0, [1.0; 3], [0.5, 0.5, 0.6])],
+        ),
+        m(
+            "ward-0.15x0.35-t0",
+            [0.1, 0.1, 0.05],
+            vec![AnalyticLobe::Ward {
+                ax: 0.15,
+                ay: 0.35,
+                tangent: 0.0,
+                ks: [0.6, 0.5, 0.4],
+            }],
+        ),
+        m(
+            "ward-0.12x0.3-t45",
+            [0.05, 0.1, 0.2],
+            vec![AnalyticLobe::Ward {
+                ax: 0.12,
+                ay: 0.3,
+                tangent: 45f64.to_radians(),
+                ks: [0.5; 3],
+            }],
+        ),
+        m(
+            "as-100x10-t0",
+            [0.1, 0.05, 0.05],
+            vec![AnalyticLobe::AshikhminShirley {
+                nu: 100.0,
+                nv: 10.0,
+                tangent: 0.0,
+                rs: [0.8, 0.6, 0.4],
+            }],
+        ),
+        m(
+            "as-20x200-t30",
+            [0.05, 0.05, 0.05],
+            vec![AnalyticLobe::AshikhminShirley {
+                nu: 20.0,
+                nv: 200.0,
+                tangent: 30f64.to_radians(),
+                rs: [0.6; 3],
+            }],
+        ),
+        m(
+            "mix-ggx-t0-t60",
+            [0.05, 0.08, 0.1],
+            vec![
+                ggx(0.12, 0.35, 0.0, [0.7; 3], gold),
+                ggx(0.4, 0.2, 60.0, [0.5; 3], white),
+            ],
+        ),
+        m(
+            "sheen-ggx-0.2x0.4",
+            [0.1, 0.05, 0.15],
+            vec![
+                ggx(0.2, 0.4, 0.0, [1.0; 3], white),
+                AnalyticLobe::Sheen {
+                    r: 0.4,
+                    color: [0.3, 0.3, 0.5],
+                },
+            ],
+        ),
     ]
 }
 

@@ -66,13 +66,19 @@ fn utia_round_trip_detection_and_malformed_files() {
     let short = dir.path().join("short.bin");
     std::fs::write(&short, &bytes[..bytes.len() - 8]).unwrap();
     let e = Table::read(&short, None).unwrap_err();
-    assert!(matches!(e, LoadError::WrongSize { .. }) && e.to_string().contains("truncated"), "{e}");
+    assert!(
+        matches!(e, LoadError::WrongSize { .. }) && e.to_string().contains("truncated"),
+        "{e}"
+    );
     let mut nan = bytes.clone();
     nan[80..88].copy_from_slice(&f64::NAN.to_le_bytes());
     let bad = dir.path().join("nan.bin");
     std::fs::write(&bad, &nan).unwrap();
     let e = Table::read(&bad, None).unwrap_err();
-    assert!(matches!(e, LoadError::NonFinite { .. }) && e.to_string().contains("nan.bin"), "{e}");
+    assert!(
+        matches!(e, LoadError::NonFinite { .. }) && e.to_string().contains("nan.bin"),
+        "{e}"
+    );
     let junk = dir.path().join("junk");
     std::fs::write(&junk, b"12345").unwrap();
     let e = Table::read(&junk, None).unwrap_err().to_string();
@@ -116,7 +122,11 @@ fn phi_spread(table: &[f32], grid: npf::grid::Grid) -> Vec<f64> {
             let hi = row.iter().cloned().fold(f32::MIN, f32::max) as f64;
             let lo = row.iter().cloned().fold(f32::MAX, f32::min) as f64;
             let mean = row.iter().map(|&v| v as f64).sum::<f64>() / row.len() as f64;
-            if mean > 0.0 { (hi - lo) / mean } else { 0.0 }
+            if mean > 0.0 {
+                (hi - lo) / mean
+            } else {
+                0.0
+            }
         })
         .collect()
 }
@@ -158,12 +168,22 @@ fn isotropic_data_gives_phi_flat_factors_and_renders_like_the_isotropic_fit() {
     let merl = npf::bsdf::to_merl(&m);
     let mut iso_samples = merl.samples("iso merl");
     iso_samples.samples = iso_samples.samples.into_iter().step_by(5).collect();
-    let iso = fit(&iso_samples, &one, &mut |_, _| {}).unwrap().result.model;
-    let opts = RenderOptions { res: 64, n_theta: 16 };
+    let iso = fit(&iso_samples, &one, &mut |_, _| {})
+        .unwrap()
+        .result
+        .model;
+    let opts = RenderOptions {
+        res: 64,
+        n_theta: 16,
+    };
     let a = render(opts, &NpfBxdf::new(aniso).unwrap());
     let b = render(opts, &NpfBxdf::new(iso).unwrap());
     let r = render(opts, &m);
-    let (ab, ar, br) = (psnr(&b, &a).unwrap(), psnr(&r, &a).unwrap(), psnr(&r, &b).unwrap());
+    let (ab, ar, br) = (
+        psnr(&b, &a).unwrap(),
+        psnr(&r, &a).unwrap(),
+        psnr(&r, &b).unwrap(),
+    );
     eprintln!("aniso vs iso fit {ab:.2} dB; vs analytic: aniso {ar:.2}, iso {br:.2}");
     assert!(ab > 35.0, "{ab}");
 }
@@ -195,12 +215,20 @@ fn objective_never_rises_and_threads_do_not_change_results() {
     for r in &one.history {
         for s in &r.stages {
             let e = s.objective.expect("traced");
-            assert!(e <= prev * (1.0 + 1e-12), "sweep {} {:?}: {prev} -> {e}", r.sweep, s.stage);
+            assert!(
+                e <= prev * (1.0 + 1e-12),
+                "sweep {} {:?}: {prev} -> {e}",
+                r.sweep,
+                s.stage
+            );
             prev = e;
         }
     }
     assert!(one.objective < 0.5 * one.initial_objective);
-    assert!(one.history.iter().any(|r| r.g_passes.iter().any(|g| g.accepted > 0)));
+    assert!(one
+        .history
+        .iter()
+        .any(|r| r.g_passes.iter().any(|g| g.accepted > 0)));
     // The front door in pools of one and two threads.
     let cfg = |threads| FitConfig {
         max_sweeps: 12,
@@ -209,7 +237,13 @@ fn objective_never_rises_and_threads_do_not_change_results() {
     };
     let bits = |threads| {
         let f = fit(&samples, &cfg(threads), &mut |_, _| {}).unwrap();
-        let p: Vec<u32> = f.result.model.params().iter().map(|v| v.to_bits()).collect();
+        let p: Vec<u32> = f
+            .result
+            .model
+            .params()
+            .iter()
+            .map(|v| v.to_bits())
+            .collect();
         (f.result.objective.to_bits(), p)
     };
     assert_eq!(bits(1), bits(2));
@@ -257,7 +291,10 @@ fn anisotropic_sampler_pdf_integrates_and_passes_chi_square() {
         let integral = hemisphere_integral(&|wi| b.pdf(wo, wi), 600, 1200);
         let lost = b.lost_mass(wo);
         eprintln!("wo ({t_deg}, {p_deg}): integral {integral:.5}, lost {lost:.5}");
-        assert!((integral - (1.0 - lost)).abs() < 5e-3, "{integral} vs 1 - {lost}");
+        assert!(
+            (integral - (1.0 - lost)).abs() < 5e-3,
+            "{integral} vs 1 - {lost}"
+        );
 
         // Cells: 12 in cos theta (equal solid angle) x 24 in phi.
         let (nc, np, n) = (12usize, 24usize, 200_000usize);
@@ -288,7 +325,8 @@ fn anisotropic_sampler_pdf_integrates_and_passes_chi_square() {
                     }
                 }
                 // Cell solid angle: (1 / nc) (2 pi / np).
-                expected[i * np + j] = e / (sub * sub) as f64 * (1.0 / nc as f64) * (2.0 * PI / np as f64) * n as f64;
+                expected[i * np + j] =
+                    e / (sub * sub) as f64 * (1.0 / nc as f64) * (2.0 * PI / np as f64) * n as f64;
             }
         }
         let (mut chi2, mut dof, mut pool_e, mut pool_o) = (0.0, 0usize, 0.0, 0.0);

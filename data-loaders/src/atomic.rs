@@ -32,7 +32,9 @@ pub fn remove_live_temps() -> usize {
         Ok(g) => g,
         Err(p) => p.into_inner(),
     };
-    live.iter().filter(|p| std::fs::remove_file(p).is_ok()).count()
+    live.iter()
+        .filter(|p| std::fs::remove_file(p).is_ok())
+        .count()
 }
 
 /// The temporary files [`remove_live_temps`] would delete now.
@@ -260,7 +262,9 @@ mod tests {
     fn stale_temps_of_dead_writers_are_cleaned() {
         let dir = tempfile::tempdir().unwrap();
         // No process has pid u32::MAX - 1 on Linux (pid_max <= 2^22).
-        let stale = dir.path().join(format!(".out.bin.npf-{}.abc123.tmp", u32::MAX - 1));
+        let stale = dir
+            .path()
+            .join(format!(".out.bin.npf-{}.abc123.tmp", u32::MAX - 1));
         let other = dir.path().join(".other.bin.npf-4294967294.x.tmp");
         std::fs::write(&stale, b"left by a killed run").unwrap();
         std::fs::write(&other, b"not ours").unwrap();

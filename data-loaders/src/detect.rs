@@ -150,8 +150,14 @@ mod tests {
         // A truncated file keeps its extension's format (the reader names the size).
         assert_eq!(Format::detect(&p("a.bin"), 10).unwrap(), Format::Utia);
         let e = Format::detect(&p("x.bin"), m).unwrap_err().to_string();
-        assert!(e.contains("x.bin") && e.contains("ambiguous") && e.contains("--format"), "{e}");
+        assert!(
+            e.contains("x.bin") && e.contains("ambiguous") && e.contains("--format"),
+            "{e}"
+        );
         let e = Format::detect(&p("x.txt"), 17).unwrap_err().to_string();
-        assert!(e.contains("x.txt") && e.contains("17 bytes") && e.contains("UTIA"), "{e}");
+        assert!(
+            e.contains("x.txt") && e.contains("17 bytes") && e.contains("UTIA"),
+            "{e}"
+        );
     }
 }

@@ -365,7 +365,8 @@ mod prop {
     fn valid() -> &'static [u8] {
         static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
         BYTES.get_or_init(|| {
-            MerlTable::from_fn(|th, td, _| (td < 1.5).then_some([th + 0.1, td + 0.2, 0.3])).to_bytes()
+            MerlTable::from_fn(|th, td, _| (td < 1.5).then_some([th + 0.1, td + 0.2, 0.3]))
+                .to_bytes()
         })
     }
 

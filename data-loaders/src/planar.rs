@@ -68,7 +68,9 @@ pub(crate) fn read_exact_size_as(
         });
     }
     let mut bytes = Vec::with_capacity(expected as usize + 1);
-    file.take(expected + 1).read_to_end(&mut bytes).map_err(io)?;
+    file.take(expected + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
     if bytes.len() as u64 != expected {
         return Err(LoadError::WrongSize {
             path: path.to_path_buf(),

@@ -427,7 +427,8 @@ mod prop {
     fn valid() -> &'static [u8] {
         static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
         BYTES.get_or_init(|| {
-            UtiaTable::from_fn(|ti, _, tv, _| (ti < 1.2).then_some([ti + 0.1, tv + 0.2, 0.3])).to_bytes()
+            UtiaTable::from_fn(|ti, _, tv, _| (ti < 1.2).then_some([ti + 0.1, tv + 0.2, 0.3]))
+                .to_bytes()
         })
     }
 

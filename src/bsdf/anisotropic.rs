@@ -49,7 +49,11 @@ impl AnisoSampler {
         let end = axis.coord(FRAC_PI_2);
         let n_t = (end.ceil() as usize).max(1) * THETA_SUB;
         let mut t_edges: Vec<f64> = (0..=n_t)
-            .map(|j| axis.angle_at((j as f64 / THETA_SUB as f64).min(end)).sin().powi(2))
+            .map(|j| {
+                axis.angle_at((j as f64 / THETA_SUB as f64).min(end))
+                    .sin()
+                    .powi(2)
+            })
             .collect();
         t_edges[0] = 0.0;
         t_edges[n_t] = 1.0;
@@ -211,7 +215,8 @@ impl AnisoSampler {
             let mut l = 0.0;
             for a in 0..n {
                 for b in 0..n {
-                    let (t, phi) = d.sample([(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64]);
+                    let (t, phi) =
+                        d.sample([(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64]);
                     let (sh, ch) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
                     let h = [sh * phi.cos(), sh * phi.sin(), ch];
                     if !(dot(wo, h) > 0.0 && reflect(wo, h)[2] > 0.0) {

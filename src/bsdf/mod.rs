@@ -184,7 +184,12 @@ pub(crate) fn cosine_draw(bsdf: &dyn Bsdf, wo: Vec3, u: [f64; 2]) -> Option<Bsdf
         return None;
     }
     let wi = cosine_hemisphere(u);
-    let s = BsdfSample::new(wi, bsdf.eval(wo, wi), cosine_pdf_for(wo, wi), Component::Diffuse);
+    let s = BsdfSample::new(
+        wi,
+        bsdf.eval(wo, wi),
+        cosine_pdf_for(wo, wi),
+        Component::Diffuse,
+    );
     (!s.is_lost()).then_some(s)
 }
 

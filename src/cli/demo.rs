@@ -3,8 +3,8 @@
 //! forms and its reconstruction, and prints the errors.
 
 use super::fit::{fit_with_progress, print_summary, FitFlags};
-use crate::fit::ModelKind;
 use super::{check_outputs, CliError, CliResult};
+use crate::fit::ModelKind;
 use crate::metrics::compare;
 use crate::modelfile::{self, ModelFile};
 use crate::reconstruct::to_merl;

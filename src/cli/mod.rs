@@ -109,9 +109,7 @@ pub fn check_output(path: &Path, force: bool) -> CliResult {
                     npf_data_loaders::sniff::describe(path)
                 ))
             }
-            Ok(_) if !force => {
-                return refuse("already exists (pass --force to overwrite)".into())
-            }
+            Ok(_) if !force => return refuse("already exists (pass --force to overwrite)".into()),
             Ok(_) => {}
         }
     }

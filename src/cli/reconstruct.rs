@@ -33,10 +33,11 @@ pub fn run(args: ReconstructArgs) -> CliResult {
         Some("binary") => FormatArg::Merl,
         Some("bin") => FormatArg::Utia,
         _ => {
+            let out = args.output.display();
             return Err(CliError::Message(format!(
-                "{}: reconstruct writes a table: the output must end in .binary (MERL) or .bin (UTIA)",
-                args.output.display()
-            )))
+                "{out}: reconstruct writes a table: the output must end in \
+                 .binary (MERL) or .bin (UTIA)"
+            )));
         }
     };
     if args.format.is_some_and(|f| f != format) {

@@ -348,7 +348,10 @@ pub fn run(args: ReportArgs) -> CliResult {
     write_file(&out.join("report.md"), md.as_bytes())?;
     // The report is written (it says why each fit failed), but a run in
     // which nothing succeeded is a failed run.
-    let failed = rows.iter().filter(|r| r.eval.is_none() || markdown::failure(r).is_some()).count();
+    let failed = rows
+        .iter()
+        .filter(|r| r.eval.is_none() || markdown::failure(r).is_some())
+        .count();
     if rows.is_empty() || failed == rows.len() {
         return Err(CliError::Message(format!(
             "{}: every fit failed ({failed} of {}): see {}",
