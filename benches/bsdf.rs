@@ -154,11 +154,31 @@ fn bench(c: &mut Criterion<CpuTime>) {
             acc
         })
     });
+    // The model's own evaluator, for comparison with the flat copy that
+    // NpfBxdf::eval uses.
+    g.bench_function("eval_model", |bench| {
+        bench.iter(|| {
+            let mut acc = 0.0;
+            for &(wo, wi) in &pairs {
+                acc += b.model().eval(black_box(wo), black_box(wi))[1];
+            }
+            acc
+        })
+    });
     g.bench_function("pdf", |bench| {
         bench.iter(|| {
             let mut acc = 0.0;
             for &(wo, wi) in &pairs {
                 acc += b.pdf(black_box(wo), black_box(wi));
+            }
+            acc
+        })
+    });
+    g.bench_function("pdf_reference", |bench| {
+        bench.iter(|| {
+            let mut acc = 0.0;
+            for &(wo, wi) in &pairs {
+                acc += b.pdf_reference(black_box(wo), black_box(wi));
             }
             acc
         })

@@ -14,6 +14,7 @@
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use super::flat::{acos, FlatEval};
 use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
 use crate::sampling::{PiecewiseConstant, PiecewiseConstant2D};
@@ -77,6 +78,17 @@ pub struct NpfBxdf {
     selection: Vec<f64>,
     /// The 2-D sampler of an anisotropic model (which then has no 1-D tables).
     aniso: Option<super::anisotropic::AnisoSampler>,
+    /// Every lobe's cell densities side by side, for `pdf`: entry
+    /// `((view * cells + i) * PHI_CELLS + j) * lobes + m` is
+    /// `lobe_table(m, view).cell_density(i, j)` (0 for a lobe without
+    /// tables), so one cache line serves all lobes.
+    densities: Vec<f64>,
+    /// Guide table over u = t^(1/4) (near-uniform in the edges' index):
+    /// entry b is the last cell whose lower edge is at most (b / len)^4.
+    t_guide: Vec<u32>,
+    /// The model flattened for fast evaluation (isotropic, at most
+    /// FLAT_LOBES lobes; otherwise eval is `Model::eval`).
+    flat: Option<FlatEval>,
 }
 
 fn dot(a: Vec3, b: Vec3) -> f64 {
@@ -119,6 +131,9 @@ impl NpfBxdf {
                 lobes,
                 selection: Vec::new(),
                 aniso,
+                densities: Vec::new(),
+                t_guide: Vec::new(),
+                flat: None,
             });
         }
         let edges = t_edges(&model);
@@ -136,7 +151,13 @@ impl NpfBxdf {
             lobes,
             selection: Vec::new(),
             aniso: None,
+            densities: Vec::new(),
+            t_guide: Vec::new(),
+            flat: None,
         };
+        bxdf.flat = FlatEval::new(&bxdf.model);
+        bxdf.densities = bxdf.fused_densities();
+        bxdf.t_guide = t_guide(&bxdf.edges);
         bxdf.selection = bxdf.selection_table();
         Ok(bxdf)
     }
@@ -160,7 +181,47 @@ impl NpfBxdf {
             .flatten()
             .map(PiecewiseConstant2D::table_bytes)
             .sum::<usize>()
-            + 8 * (self.selection.len() + self.edges.len())
+            + 8 * (self.selection.len() + self.edges.len() + self.densities.len())
+            + 4 * self.t_guide.len()
+            + self.flat.as_ref().map_or(0, FlatEval::table_bytes)
+    }
+
+    fn fused_densities(&self) -> Vec<f64> {
+        let cells = self.edges.len().saturating_sub(1);
+        let nl = self.model.lobes.len();
+        if self.lobes.iter().all(Option::is_none) {
+            return Vec::new();
+        }
+        let mut out = vec![0.0; VIEW_NODES * cells * PHI_CELLS * nl];
+        for (m, tables) in self.lobes.iter().enumerate() {
+            let Some(tables) = tables else { continue };
+            for (view, table) in tables.iter().enumerate() {
+                for i in 0..cells {
+                    for j in 0..PHI_CELLS {
+                        out[((view * cells + i) * PHI_CELLS + j) * nl + m] =
+                            table.cell_density(i, j);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The t cell holding t in [0, 1): the last i with `edges[i] <= t`
+    /// (what a binary search finds), from the guide table.
+    #[inline]
+    fn t_cell(&self, t: f64) -> usize {
+        let n = self.edges.len() - 1;
+        let g = self.t_guide.len();
+        let b = ((t.sqrt().sqrt() * g as f64) as usize).min(g - 1);
+        let mut i = self.t_guide[b] as usize;
+        while i + 1 < n && self.edges[i + 1] <= t {
+            i += 1;
+        }
+        while i > 0 && self.edges[i] > t {
+            i -= 1;
+        }
+        i
     }
 
     /// The half-vector distribution of lobe m in t = sin^2 theta_h at
@@ -248,7 +309,7 @@ impl NpfBxdf {
     /// the row below and the weight of the row above.
     #[inline]
     fn selection_row(&self, cos_o: f64) -> (usize, f64) {
-        let theta = cos_o.clamp(-1.0, 1.0).acos();
+        let theta = acos(cos_o.clamp(-1.0, 1.0));
         let x = theta.to_degrees() / VIEW_MAX_DEG * (VIEW_NODES - 1) as f64;
         let x = x.clamp(0.0, (VIEW_NODES - 1) as f64);
         let k = (x.floor() as usize).min(VIEW_NODES - 2);
@@ -277,49 +338,101 @@ impl NpfBxdf {
             .collect()
     }
 
-    /// BRDF value f(wo, wi) per channel (1/sr): exactly [`Model::eval`]
+    /// BRDF value f(wo, wi) per channel (1/sr): [`Model::eval`]'s value
     /// (zero when either direction is at or below the horizon, never
-    /// negative).
+    /// negative), through the flat copy [`FlatEval`] when the model has
+    /// one (the same arithmetic; 1e-9 relative, tested).
+    #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> [f64; 3] {
-        self.model.eval(wo, wi)
+        match &self.flat {
+            Some(f) => f.eval(wo, wi),
+            None => self.model.eval(wo, wi),
+        }
+    }
+
+    /// The diffuse part of the mixture density at (wo, wi) and, when a lobe
+    /// could have drawn wi, what the lobe part needs: the selection-table
+    /// position, the half vector h, t = sin^2 theta_h and the Jacobian
+    /// `cos theta_h / (4 wo.h)` from the tables' density to solid angle.
+    /// None for the whole when wo or wi is at or below the horizon.
+    #[inline]
+    #[allow(clippy::type_complexity)]
+    fn pdf_parts(
+        &self,
+        wo: Vec3,
+        wi: Vec3,
+    ) -> Option<(f64, Option<((usize, f64), Vec3, f64, f64)>)> {
+        if !(wo[2] > 0.0 && wi[2] > 0.0) {
+            return None;
+        }
+        let row = self.selection_row(wo[2]);
+        let p_diffuse = self.selection_at(row, 0);
+        let pdf = if p_diffuse > 0.0 {
+            p_diffuse * wi[2] / PI
+        } else {
+            0.0
+        };
+        let lobe = half_vector(wi, wo).and_then(|(h, t)| {
+            let wo_h = dot(wo, h);
+            // Density per solid angle of h: (table density / 2) over signed
+            // azimuths, times dt dphi / dOmega_h = 2 cos theta_h.
+            (h[2] > 0.0 && wo_h > 0.0 && (0.0..1.0).contains(&t))
+                .then(|| (row, h, t, h[2] / (4.0 * wo_h)))
+        });
+        Some((pdf, lobe))
     }
 
     /// Mixture density (per solid angle of wi) with which [`NpfBxdf::sample`]
     /// draws wi given wo; zero when either direction is at or below the
     /// horizon. Usable as the BSDF pdf in multiple importance sampling.
+    /// (The fused form of [`NpfBxdf::pdf_reference`]: a guide table finds
+    /// the t cell, comparisons the azimuth cell, and one row of the fused
+    /// density table holds every lobe's density.)
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
         if let Some(a) = &self.aniso {
             return a.pdf(wo, wi);
         }
-        if !(wo[2] > 0.0 && wi[2] > 0.0) {
+        let Some((mut pdf, lobe)) = self.pdf_parts(wo, wi) else {
             return 0.0;
-        }
-        let row = self.selection_row(wo[2]);
-        let mut pdf = 0.0;
-        let p_diffuse = self.selection_at(row, 0);
-        if p_diffuse > 0.0 {
-            pdf += p_diffuse * wi[2] / PI;
-        }
-        let Some((h, t)) = half_vector(wi, wo) else {
+        };
+        let Some((row, h, t, jac)) = lobe.filter(|_| !self.densities.is_empty()) else {
             return pdf;
         };
-        let wo_h = dot(wo, h);
-        if !(h[2] > 0.0 && wo_h > 0.0) {
-            return pdf;
+        let i = self.t_cell(t);
+        let (ex, ey) = azimuth_frame(wo);
+        let j = azimuth_cell(h, ex, ey);
+        let nl = self.model.lobes.len();
+        let cells = self.edges.len() - 1;
+        let base = ((view_node(row) * cells + i) * PHI_CELLS + j) * nl;
+        for (m, &d) in self.densities[base..base + nl].iter().enumerate() {
+            if d > 0.0 {
+                pdf += self.selection_at(row, m + 1) * d * jac;
+            }
         }
+        pdf
+    }
+
+    /// [`NpfBxdf::pdf`] computed from the per-lobe tables themselves (a
+    /// binary search for the t cell, atan2 for the azimuth cell): the
+    /// reference the fused fast path is tested against (same value; only
+    /// cells at their exact edges could differ).
+    pub fn pdf_reference(&self, wo: Vec3, wi: Vec3) -> f64 {
+        if let Some(a) = &self.aniso {
+            return a.pdf(wo, wi);
+        }
+        let Some((mut pdf, lobe)) = self.pdf_parts(wo, wi) else {
+            return 0.0;
+        };
+        let Some((row, h, t, jac)) = lobe else {
+            return pdf;
+        };
         // One cell lookup serves every lobe: they share the edges.
         let n = self.edges.len() - 1;
-        if !(0.0..1.0).contains(&t) {
-            return pdf;
-        }
         let i = (self.edges.partition_point(|&e| e <= t) - 1).min(n - 1);
         let (ex, ey) = azimuth_frame(wo);
         let phi = relative_azimuth(h, ex, ey);
         let j = ((phi / PI * PHI_CELLS as f64) as usize).min(PHI_CELLS - 1);
         let view = view_node(row);
-        // Density per solid angle of h: (table density / 2) over signed
-        // azimuths, times dt dphi / dOmega_h = 2 cos theta_h.
-        let jac = h[2] / (4.0 * wo_h);
         for (m, tables) in self.lobes.iter().enumerate() {
             if let Some(tables) = tables {
                 let p = self.selection_at(row, m + 1);
@@ -503,6 +616,28 @@ fn relative_azimuth(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> f64 {
     y.abs().atan2(x)
 }
 
+/// The azimuth cell of a half vector, `floor(|phi_h - phi_o| / pi *
+/// PHI_CELLS)`, by comparing cos(phi) with the cell edges' cosines (no
+/// atan2): phi >= k pi / PHI_CELLS iff x <= cos(k pi / PHI_CELLS) r.
+#[inline]
+fn azimuth_cell(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> usize {
+    const _: () = assert!(PHI_CELLS == 8, "EDGE_COS holds the edges of 8 cells");
+    const EDGE_COS: [f64; PHI_CELLS - 1] = {
+        // cos(k pi / 8), k = 1..7.
+        let c1 = 0.923_879_532_511_286_7;
+        let c2 = std::f64::consts::FRAC_1_SQRT_2;
+        let c3 = 0.382_683_432_365_089_8;
+        [c1, c2, c3, 0.0, -c3, -c2, -c1]
+    };
+    let x = h[0] * ex[0] + h[1] * ex[1];
+    let y = h[0] * ey[0] + h[1] * ey[1];
+    let r = (x * x + y * y).sqrt();
+    if !(r > 0.0) {
+        return 0;
+    }
+    EDGE_COS.iter().filter(|&&c| x <= c * r).count()
+}
+
 /// A half vector drawn from a lobe's view table: u[0] picks t, u[1] the
 /// sign of the relative azimuth (below or above 1/2) and, rescaled, its
 /// magnitude.
@@ -542,6 +677,22 @@ fn t_edges(model: &Model) -> Vec<f64> {
     edges[cells] = 1.0;
     edges.dedup_by(|b, a| *b <= *a);
     edges
+}
+
+/// The guide table of [`NpfBxdf::t_cell`]: 2 entries per cell, over
+/// u = t^(1/4) in [0, 1).
+fn t_guide(edges: &[f64]) -> Vec<u32> {
+    let n = edges.len().saturating_sub(1);
+    if n == 0 {
+        return Vec::new();
+    }
+    let g = 2 * n;
+    (0..g)
+        .map(|b| {
+            let t = (b as f64 / g as f64).powi(4);
+            (edges.partition_point(|&e| e <= t).saturating_sub(1)).min(n - 1) as u32
+        })
+        .collect()
 }
 
 /// Gauss-Legendre points per azimuth cell in the table masses.
@@ -769,9 +920,12 @@ mod tests {
         assert!(b.sample(wo, 0.3, [0.3, 0.3]).is_lost());
         assert_eq!(b.pdf(wo, [0.0, 0.6, 0.8]), 0.0);
         assert_eq!(b.lost_mass(wo), 1.0);
+        let cells = t_edges(b.model()).len() - 1;
         assert_eq!(
             b.table_bytes(),
-            8 * (VIEW_NODES * 2 + t_edges(b.model()).len())
+            8 * (VIEW_NODES * 2 + cells + 1)
+                + 4 * 2 * cells
+                + FlatEval::new(b.model()).unwrap().table_bytes()
         );
     }
 

@@ -24,6 +24,7 @@
 
 mod anisotropic;
 mod factor;
+mod flat;
 mod ggx;
 mod measured;
 mod utia;
@@ -33,6 +34,7 @@ pub use factor::{
     NpfBxdf, COVERAGE_SHARE, GL4_W, GL4_X, NEGLIGIBLE_CELL, PHI_CELLS, SELECTION_FLOOR, SUBCELLS,
     VIEW_NODES,
 };
+pub use flat::{acos, FlatEval, FLAT_LOBES};
 
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
 use npf_data_loaders::MerlTable;

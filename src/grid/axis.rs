@@ -140,29 +140,59 @@ impl Axis {
 const SNAP: f64 = 1e-7;
 
 fn linear_stencil(p: f64, n: usize) -> Stencil {
+    match linear_weights(p, n) {
+        (i, _, w1) if w1 == 0.0 => Stencil::single(i),
+        (i, w0, w1) => Stencil::pair(i, w0, i + 1, w1),
+    }
+}
+
+/// The linear stencil at coordinate p on n nodes as (i, w_i, w_{i+1}):
+/// w_{i+1} = 0 (node i + 1 is then not read and may not exist) when p is
+/// within [`SNAP`] of node i, or past the last node.
+#[inline(always)]
+pub(crate) fn linear_weights(p: f64, n: usize) -> (usize, f64, f64) {
     if n == 1 {
-        return Stencil::single(0);
+        return (0, 1.0, 0.0);
     }
     let last = (n - 1) as f64;
     if p >= last - SNAP {
-        return Stencil::single(n - 1);
+        return (n - 1, 1.0, 0.0);
     }
-    let i = p.floor() as usize;
+    // Truncation is floor here (and for p < 0 both give 0), without a libm
+    // call on baseline x86-64.
+    let i = p as usize;
     let t = p - i as f64;
     if t < SNAP {
-        return Stencil::single(i);
+        return (i, 1.0, 0.0);
     }
     if t > 1.0 - SNAP {
-        return Stencil::single(i + 1);
+        return (i + 1, 1.0, 0.0);
     }
-    Stencil::pair(i, 1.0 - t, i + 1, t)
+    (i, 1.0 - t, t)
 }
 
 /// pbrt-v3's CatmullRomWeights on uniform nodes 0..n-1 (coordinate p):
 /// interior tangents are centred differences, the end intervals use the chord.
 pub fn catmull_rom_stencil(p: f64, n: usize) -> Stencil {
+    let (i, w) = catmull_rom_weights(p, n);
+    // Slot k stays slot k (an unused slot keeps weight 0): the order in
+    // which sums read the slots is part of the fit's arithmetic.
+    let mut st = Stencil::empty(4);
+    for (k, &wk) in w.iter().enumerate() {
+        let j = i as isize - 1 + k as isize;
+        if wk != 0.0 && j >= 0 && (j as usize) < n {
+            st.set(k, j as usize, wk);
+        }
+    }
+    st
+}
+
+/// [`catmull_rom_stencil`]'s interval i and weights: slot k is node
+/// i - 1 + k (slot 0 has weight 0 at i = 0, slot 3 at i = n - 2).
+#[inline(always)]
+pub(crate) fn catmull_rom_weights(p: f64, n: usize) -> (usize, [f64; 4]) {
     assert!(n >= 2, "a Catmull-Rom axis needs two nodes");
-    let i = (p.floor() as usize).min(n - 2);
+    let i = (p as usize).min(n - 2);
     let t = (p - i as f64).clamp(0.0, 1.0);
     let (t2, t3) = (t * t, t * t * t);
     let mut w = [0.0, 2.0 * t3 - 3.0 * t2 + 1.0, -2.0 * t3 + 3.0 * t2, 0.0];
@@ -185,16 +215,7 @@ pub fn catmull_rom_stencil(p: f64, n: usize) -> Stencil {
         w[1] -= h11;
         w[2] += h11;
     }
-    // Slot k stays slot k (an unused slot keeps weight 0): the order in
-    // which sums read the slots is part of the fit's arithmetic.
-    let mut st = Stencil::empty(4);
-    for (k, &wk) in w.iter().enumerate() {
-        let j = i as isize - 1 + k as isize;
-        if wk != 0.0 && j >= 0 && (j as usize) < n {
-            st.set(k, j as usize, wk);
-        }
-    }
-    st
+    (i, w)
 }
 
 /// The periodic azimuth axis of a 2-D factor table: `n` nodes at

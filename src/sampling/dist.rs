@@ -8,6 +8,11 @@ pub struct PiecewiseConstant {
     edges: Vec<f64>,
     cdf: Vec<f64>,
     density: Vec<f64>,
+    /// Guide table (Devroye's indexed search): entry b is the last cell i
+    /// with `cdf[i] <= b / cells`, where the search for u in
+    /// `[b, b + 1) / cells` starts; a few steps forward find the cell the
+    /// binary search would (one or two on average, and the same cell).
+    guide: Vec<u32>,
 }
 
 impl PiecewiseConstant {
@@ -50,10 +55,17 @@ impl PiecewiseConstant {
         let density = (0..n)
             .map(|i| (cdf[i + 1] - cdf[i]) / (edges[i + 1] - edges[i]))
             .collect();
+        let guide = (0..n)
+            .map(|b| {
+                let u = b as f64 / n as f64;
+                (cdf.partition_point(|&c| c <= u).saturating_sub(1)).min(n - 1) as u32
+            })
+            .collect();
         Some(PiecewiseConstant {
             edges,
             cdf,
             density,
+            guide,
         })
     }
 
@@ -77,9 +89,10 @@ impl PiecewiseConstant {
         self.cdf[i + 1] - self.cdf[i]
     }
 
-    /// Bytes of table storage (edges, cdf, densities as f64).
+    /// Bytes of table storage (edges, cdf, densities as f64, the guide
+    /// table as u32).
     pub fn table_bytes(&self) -> usize {
-        8 * (self.edges.len() + self.cdf.len() + self.density.len())
+        8 * (self.edges.len() + self.cdf.len() + self.density.len()) + 4 * self.guide.len()
     }
 
     /// x in `[edges[0], edges[n])` distributed with this density, for u in [0, 1).
@@ -98,12 +111,17 @@ impl PiecewiseConstant {
         } else {
             0.0
         };
-        // Last i with cdf[i] <= u among cells of positive probability.
-        let mut i = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .saturating_sub(1)
-            .min(n - 1);
+        // Last i with cdf[i] <= u (from the guide table, then forward; the
+        // step back only guards the rounding of b / n against u).
+        let b = ((u * n as f64) as usize).min(n - 1);
+        let mut i = self.guide[b] as usize;
+        while i + 1 < self.cdf.len() && self.cdf[i + 1] <= u {
+            i += 1;
+        }
+        while i > 0 && self.cdf[i] > u {
+            i -= 1;
+        }
+        let mut i = i.min(n - 1);
         // Skip zero-probability cells (u at a plateau of the cdf, or u = 1).
         while self.cdf[i + 1] <= self.cdf[i] && i > 0 {
             i -= 1;
@@ -169,5 +187,41 @@ mod tests {
         assert_eq!(d.pdf(1.0), 0.0);
         assert!(PiecewiseConstant::new(vec![0.0, 1.0], &[0.0]).is_none());
         assert!(PiecewiseConstant::new(vec![0.0, 1.0], &[f64::NAN]).is_none());
+    }
+
+    #[test]
+    fn the_guide_table_finds_the_binary_search_cell() {
+        // A peaky distribution with plateaus (zero cells) and tiny cells.
+        let n = 361;
+        let edges: Vec<f64> = (0..=n).map(|k| (k as f64 / n as f64).powi(4)).collect();
+        let mass: Vec<f64> = (0..n)
+            .map(|k| match k % 17 {
+                0 | 5 => 0.0,
+                _ => (-(k as f64) / 9.0).exp() + 1e-13,
+            })
+            .collect();
+        let d = PiecewiseConstant::new(edges, &mass).unwrap();
+        let reference = |u: f64| {
+            let mut i = d
+                .cdf
+                .partition_point(|&c| c <= u)
+                .saturating_sub(1)
+                .min(n - 1);
+            while d.cdf[i + 1] <= d.cdf[i] && i > 0 {
+                i -= 1;
+            }
+            i
+        };
+        let mut us: Vec<f64> = (0..200_000).map(|k| k as f64 / 200_000.0).collect();
+        us.extend(
+            d.cdf
+                .iter()
+                .flat_map(|&c| [c, c - 1e-17, c + 1e-16, c * (1.0 - 1e-16)]),
+        );
+        us.extend([0.0, 1.0, 1.0 - 1e-17, -1.0, 2.0]);
+        for u in us {
+            let uc = u.clamp(0.0, 1.0);
+            assert_eq!(d.sample_cell(u).0, reference(uc), "u = {u}");
+        }
     }
 }
