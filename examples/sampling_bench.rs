@@ -419,19 +419,35 @@ const ANGLE_SAMPLES: usize = 1 << 18;
 
 /// Per-sample variances (ours, cosine) at one pixel: of the RGB estimate
 /// of the outgoing radiance under the environment (summed over channels),
-/// and of the luminance weight alone (white furnace).
-fn single_sample_variances(b: &NpfBxdf, px: &Pixel, rng: &mut Pcg64) -> ([f64; 2], [f64; 2]) {
+/// and of the luminance weight alone (white furnace); and, under the
+/// environment, the variance an ideal BSDF sampler would have, whose pdf is
+/// exactly proportional to lum(f) cos theta_i (the best any sampler that
+/// ignores the lighting can do for all three channels at once), estimated
+/// from our own draws by importance reweighting:
+/// E_ideal[(f_c cos L_c / p*)^2] = E_ours[(f_c cos L_c)^2 / (p* p_ours)]
+/// with p* = lum(f) cos / A, A = E_ours[lum(f cos / p_ours)] (the albedo).
+fn single_sample_variances(b: &NpfBxdf, px: &Pixel, rng: &mut Pcg64) -> ([f64; 2], [f64; 2], f64) {
     let lum = |w: [f64; 3]| 0.2126 * w[0] + 0.7152 * w[1] + 0.0722 * w[2];
     let (mut env, mut white) = ([0.0; 2], [0.0; 2]);
+    let mut ideal = 0.0;
     for (k, method) in [Method::Ours, Method::Cosine].into_iter().enumerate() {
         let n = ANGLE_SAMPLES;
         let (mut s1, mut s2) = ([0.0; 3], [0.0; 3]);
         let (mut f1, mut f2) = (0.0, 0.0);
+        // Sums of (f_c cos L_c)^2 / (lum(f) cos p_ours) for the ideal sampler.
+        let mut q = [0.0; 3];
         for _ in 0..n {
             let (ul, u0, u1): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
             let (wi, w) = match method {
                 Method::Ours => {
                     let s = b.sample(px.wo, ul, [u0, u1]);
+                    let lf = lum(s.f);
+                    if s.pdf > 0.0 && lf > 0.0 {
+                        let l = environment(px.world(s.wi));
+                        for c in 0..3 {
+                            q[c] += (s.f[c] * l[c]).powi(2) * s.wi[2] / (lf * s.pdf);
+                        }
+                    }
                     (s.wi, s.weight)
                 }
                 Method::Cosine => {
@@ -454,8 +470,14 @@ fn single_sample_variances(b: &NpfBxdf, px: &Pixel, rng: &mut Pcg64) -> ([f64; 2
         let nf = n as f64;
         env[k] = (0..3).map(|c| s2[c] / nf - (s1[c] / nf).powi(2)).sum();
         white[k] = f2 / nf - (f1 / nf).powi(2);
+        if method == Method::Ours {
+            let albedo = f1 / nf;
+            ideal = (0..3)
+                .map(|c| albedo * q[c] / nf - (s1[c] / nf).powi(2))
+                .sum();
+        }
     }
-    (env, white)
+    (env, white, ideal)
 }
 
 /// `--angles FITS_DIR OUT_MD [MATERIAL ...]`: the variance ratio cosine /
@@ -496,8 +518,11 @@ fn angles_main(args: &[String]) -> Result<(), String> {
     let mut head = "| material |".to_string();
     let mut rule = "|---|".to_string();
     for t in VIEW_ANGLES {
-        let _ = write!(head, " env {t:.0} deg | white {t:.0} deg |");
-        rule.push_str("---:|---:|");
+        let _ = write!(
+            head,
+            " env {t:.0} deg | ideal env {t:.0} deg | white {t:.0} deg |"
+        );
+        rule.push_str("---:|---:|---:|");
     }
     let _ = writeln!(s, "{head} lobe albedo share at 0 deg |\n{rule}---:|");
     for (k, name) in materials.iter().enumerate() {
@@ -511,11 +536,12 @@ fn angles_main(args: &[String]) -> Result<(), String> {
         for t in VIEW_ANGLES {
             let st = t.to_radians().sin();
             let px = Pixel::new([st * 0.7f64.cos(), st * 0.7f64.sin()]);
-            let (env, white) = single_sample_variances(&b, &px, &mut rng);
+            let (env, white, ideal) = single_sample_variances(&b, &px, &mut rng);
             let _ = write!(
                 s,
-                " {} | {} |",
+                " {} | {} | {} |",
                 ratio(env[1] / env[0]),
+                ratio(env[1] / ideal),
                 ratio(white[1] / white[0])
             );
         }

@@ -365,7 +365,19 @@ impl NpfBxdf {
         if !(wo[2] > 0.0 && wi[2] > 0.0) {
             return None;
         }
-        let row = self.selection_row(wo[2]);
+        self.pdf_parts_at(wo, wi, self.selection_row(wo[2]))
+    }
+
+    /// [`NpfBxdf::pdf_parts`] at a known selection-table position of wo
+    /// (wo and wi above the horizon).
+    #[inline]
+    #[allow(clippy::type_complexity)]
+    fn pdf_parts_at(
+        &self,
+        wo: Vec3,
+        wi: Vec3,
+        row: (usize, f64),
+    ) -> Option<(f64, Option<((usize, f64), Vec3, f64, f64)>)> {
         let p_diffuse = self.selection_at(row, 0);
         let pdf = if p_diffuse > 0.0 {
             p_diffuse * wi[2] / PI
@@ -392,7 +404,17 @@ impl NpfBxdf {
         if let Some(a) = &self.aniso {
             return a.pdf(wo, wi);
         }
-        let Some((mut pdf, lobe)) = self.pdf_parts(wo, wi) else {
+        if !(wo[2] > 0.0 && wi[2] > 0.0) {
+            return 0.0;
+        }
+        self.pdf_at(wo, wi, self.selection_row(wo[2]))
+    }
+
+    /// [`NpfBxdf::pdf`] of an isotropic model at a known selection-table
+    /// position of wo (wo and wi above the horizon), as `sample` calls it.
+    #[inline]
+    fn pdf_at(&self, wo: Vec3, wi: Vec3, row: (usize, f64)) -> f64 {
+        let Some((mut pdf, lobe)) = self.pdf_parts_at(wo, wi, row) else {
             return 0.0;
         };
         let Some((row, h, t, jac)) = lobe.filter(|_| !self.densities.is_empty()) else {
@@ -486,8 +508,11 @@ impl NpfBxdf {
             }
             (wi, Component::Lobe(m))
         };
-        let pdf = self.pdf(wo, wi);
-        if !(pdf > 0.0) || !(wi[2] > 0.0) {
+        if !(wi[2] > 0.0) {
+            return BsdfSample::lost(wi, component);
+        }
+        let pdf = self.pdf_at(wo, wi, row);
+        if !(pdf > 0.0) {
             return BsdfSample::lost(wi, component);
         }
         BsdfSample::new(wi, self.eval(wo, wi), pdf, component)
