@@ -307,12 +307,13 @@ impl NpfBxdf {
 
     /// Where a view with cos(theta_o) = cos_o falls in the selection table:
     /// the row below and the weight of the row above.
-    #[inline]
+    #[inline(always)]
     fn selection_row(&self, cos_o: f64) -> (usize, f64) {
         let theta = acos(cos_o.clamp(-1.0, 1.0));
         let x = theta.to_degrees() / VIEW_MAX_DEG * (VIEW_NODES - 1) as f64;
         let x = x.clamp(0.0, (VIEW_NODES - 1) as f64);
-        let k = (x.floor() as usize).min(VIEW_NODES - 2);
+        // x >= 0 (or NaN, 0 either way): truncation is floor, without libm.
+        let k = (x as usize).min(VIEW_NODES - 2);
         (k, x - k as f64)
     }
 
