@@ -7,7 +7,7 @@
 //! the analytic BRDF, and fit vs the interpolated table. Peak memory is the
 //! process's (Linux VmHWM) at the end.
 //!
-//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--images DIR] [--only NAME] [--d-nodes N] [--d-axis A] [--g-axis A]
+//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--tol T] [--images DIR] [--only NAME] [--d-nodes N] [--d-axis A] [--g-axis A]
 //!
 //! `--d-axis uniform|sqrt|squared` and `--g-axis catmull-rom|uniform` swap the
 //! theta axis of D or G (same node counts, so still 2010 parameters):
@@ -52,6 +52,9 @@ fn main() {
     };
     if let Some(s) = arg(&args, "--max-sweeps") {
         config.max_sweeps = s;
+    }
+    if let Some(t) = arg(&args, "--tol") {
+        config.tol = t;
     }
     let d_nodes: Option<usize> = arg(&args, "--d-nodes");
     let d_axis: Option<String> = arg(&args, "--d-axis");
