@@ -10,7 +10,7 @@
 //!
 //! Binary (`.npfb`), little-endian: magic `NPFB`, u16 version (1), u16
 //! reserved (0), u8 layout kind, u8 lobes, then for D, F, G: u8 axis kind
-//! (0 sqrt-angle, 1 uniform, 2 Catmull-Rom) and u16 theta node count, and
+//! (0 sqrt-angle, 1 uniform, 2 Catmull-Rom, 3 squared) and u16 theta node count, and
 //! for layout kind 1 also u16 phi node count (0: a 1-D table); u32
 //! parameter count; then the parameters as f32 in `Model::params` order (d,
 //! s per lobe, D per lobe, G per lobe, F_R, F_G, F_B). Layout kind 0 (all
