@@ -7,7 +7,11 @@
 //! the analytic BRDF, and fit vs the interpolated table. Peak memory is the
 //! process's (Linux VmHWM) at the end.
 //!
-//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--images DIR] [--only NAME] [--d-nodes N]
+//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--tol T] [--images DIR] [--only NAME] [--d-nodes N] [--d-axis A] [--g-axis A]
+//!
+//! `--d-axis uniform|sqrt|squared` and `--g-axis catmull-rom|uniform` swap the
+//! theta axis of D or G (same node counts, so still 2010 parameters):
+//! the measurements behind `Layout::anisotropic()`'s choice.
 //!
 //! `--d-nodes N` fits a finer layout instead (an experiment, not the
 //! 2010-parameter model): D on N uniform theta_h nodes 90/N degrees apart
@@ -49,11 +53,35 @@ fn main() {
     if let Some(s) = arg(&args, "--max-sweeps") {
         config.max_sweeps = s;
     }
+    if let Some(t) = arg(&args, "--tol") {
+        config.tol = t;
+    }
     let d_nodes: Option<usize> = arg(&args, "--d-nodes");
+    let d_axis: Option<String> = arg(&args, "--d-axis");
+    let g_axis: Option<String> = arg(&args, "--g-axis");
+    let axis = |name: &str, n: usize| match name {
+        "uniform" => Axis::Uniform { n },
+        "sqrt" => Axis::SqrtAngle { n },
+        "squared" => Axis::Squared { n },
+        "catmull-rom" => Axis::CatmullRom { n },
+        other => panic!("unknown axis {other} (uniform, sqrt, squared, catmull-rom)"),
+    };
+    let mut layout = Layout::anisotropic();
+    if let Some(n) = d_nodes {
+        layout.d = Grid::plane(Axis::Uniform { n }, 48);
+    }
+    if let Some(a) = &d_axis {
+        layout.d = Grid::plane(axis(a, layout.d.n_theta()), 48);
+    }
+    if let Some(a) = &g_axis {
+        layout.g = Grid::plane(axis(a, 6), 48);
+    }
+    let custom = layout != Layout::anisotropic();
     let opts = RenderOptions::default();
-    println!("| material | fit s | sweeps | num. PSNR dB | render PSNR fit vs analytic | table interp. vs analytic | fit vs table interp. |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| material | fit s | CPU s | sweeps | num. PSNR dB | render PSNR fit vs analytic | table interp. vs analytic | fit vs table interp. |");
+    println!("|---|---|---|---|---|---|---|---|");
     let mut fit_vs_analytic = Vec::new();
+    let (mut beats, mut total_secs, mut total_cpu) = (0usize, 0.0, 0.0);
     for m in catalogue() {
         if only.as_ref().is_some_and(|o| *o != m.name) {
             continue;
@@ -61,13 +89,10 @@ fn main() {
         let table = m.table();
         let samples = table.samples(&m.name);
         let t = Instant::now();
-        let result = match d_nodes {
-            None => fit(&samples, &config, &mut |_, _| {}).expect("fit").result,
-            Some(n) => {
-                let layout = Layout {
-                    d: Grid::plane(Axis::Uniform { n }, 48),
-                    ..Layout::anisotropic()
-                };
+        let cpu0 = cpu_seconds();
+        let result = match custom {
+            false => fit(&samples, &config, &mut |_, _| {}).expect("fit").result,
+            true => {
                 let set = FitSet::build(&samples, layout, config.sample_options()).expect("set");
                 rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
@@ -78,6 +103,7 @@ fn main() {
             }
         };
         let secs = t.elapsed().as_secs_f64();
+        let cpu = cpu_seconds() - cpu0;
         let bxdf = NpfBxdf::new(result.model.clone()).expect("valid model");
         let num = numeric_psnr(&samples, config.max_theta, &bxdf);
         let img_ref = render(opts, &m);
@@ -87,8 +113,11 @@ fn main() {
         let p_ta = psnr(&img_ref, &img_tab).unwrap();
         let p_ft = psnr(&img_tab, &img_fit).unwrap();
         fit_vs_analytic.push((p_fa, m.name.clone()));
+        beats += usize::from(p_fa >= p_ta);
+        total_secs += secs;
+        total_cpu += cpu;
         println!(
-            "| {} | {secs:.2} | {} | {num:.2} | {p_fa:.2} | {p_ta:.2} | {p_ft:.2} |",
+            "| {} | {secs:.2} | {cpu:.2} | {} | {num:.2} | {p_fa:.2} | {p_ta:.2} | {p_ft:.2} |",
             m.name,
             result.history.len()
         );
@@ -113,7 +142,13 @@ fn main() {
     fit_vs_analytic.sort_by(|a, b| a.0.total_cmp(&b.0));
     if let Some((worst, name)) = fit_vs_analytic.first() {
         let median = fit_vs_analytic[fit_vs_analytic.len() / 2].0;
-        println!("\nrendering PSNR (fit vs analytic): median {median:.2} dB, worst {worst:.2} dB ({name})");
+        let mean = fit_vs_analytic.iter().map(|p| p.0).sum::<f64>() / fit_vs_analytic.len() as f64;
+        println!("\nrendering PSNR (fit vs analytic): median {median:.2} dB, mean {mean:.2} dB, worst {worst:.2} dB ({name})");
+        println!(
+            "fit at least as close to the analytic BRDF as the table's interpolation: {beats} of {}",
+            fit_vs_analytic.len()
+        );
+        println!("fit time: {total_secs:.1} s wall, {total_cpu:.1} s CPU in all");
     }
     let hwm = std::fs::read_to_string("/proc/self/status")
         .ok()
@@ -123,4 +158,17 @@ fn main() {
                 .map(str::to_string)
         });
     println!("peak memory: {}", hwm.unwrap_or_else(|| "n/a".into()));
+}
+
+/// User + system CPU seconds of this process so far (all threads; Linux
+/// /proc/self/stat, 100 ticks a second), 0 where unavailable.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the parenthesised command name; utime and stime are 14 and 15.
+    let rest = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(11) + tick(12)) / 100.0
 }

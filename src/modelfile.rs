@@ -10,7 +10,7 @@
 //!
 //! Binary (`.npfb`), little-endian: magic `NPFB`, u16 version (1), u16
 //! reserved (0), u8 layout kind, u8 lobes, then for D, F, G: u8 axis kind
-//! (0 sqrt-angle, 1 uniform, 2 Catmull-Rom) and u16 theta node count, and
+//! (0 sqrt-angle, 1 uniform, 2 Catmull-Rom, 3 squared) and u16 theta node count, and
 //! for layout kind 1 also u16 phi node count (0: a 1-D table); u32
 //! parameter count; then the parameters as f32 in `Model::params` order (d,
 //! s per lobe, D per lobe, G per lobe, F_R, F_G, F_B). Layout kind 0 (all
@@ -129,6 +129,7 @@ fn conventions() -> serde_json::Value {
         "axes": {
             "sqrt_angle": "n nodes, node k at theta = (k/n)^2 * pi/2; linear in sqrt(theta) between nodes; constant past the last node",
             "uniform": "n nodes, node k at theta = k/n * pi/2; linear between nodes; constant past the last node",
+            "squared": "n nodes, node k at theta = (k/(n-1))^2 * (n-1)/n * pi/2 (uniform's span, squared spacing); linear in sqrt(theta) between nodes; constant past the last node",
             "catmull_rom": "n control points at theta_k = k/(n-1) * pi/2; pbrt-v3 CatmullRomWeights (centred tangents, chord at the ends)",
             "phi": "optional periodic azimuth axis of a 2-D table: n nodes at phi_k = 2 pi k / n, linear, wrapping; the table is row-major theta x phi; D reads (theta_h, phi_h), G (theta, phi) of each direction, F (theta_d, phi_d)"
         },
@@ -247,6 +248,7 @@ fn axis_code(a: Axis) -> (u8, u16) {
         Axis::SqrtAngle { n } => (0, n as u16),
         Axis::Uniform { n } => (1, n as u16),
         Axis::CatmullRom { n } => (2, n as u16),
+        Axis::Squared { n } => (3, n as u16),
     }
 }
 
@@ -256,6 +258,7 @@ fn axis_from(code: u8, n: u16) -> Option<Axis> {
         0 => Some(Axis::SqrtAngle { n }),
         1 => Some(Axis::Uniform { n }),
         2 => Some(Axis::CatmullRom { n }),
+        3 => Some(Axis::Squared { n }),
         _ => None,
     }
 }

@@ -129,6 +129,20 @@ fn anisotropic_models_round_trip_and_bad_layouts_are_refused() {
     let back = modelfile::from_json(&modelfile::to_json(&file), Path::new("a.json")).unwrap();
     assert_eq!(back.model, model);
     assert_eq!(bits(&back.model), bits(&model));
+    // D on the squared theta_h axis (file axis code 3) round-trips too.
+    let mut squared = layout;
+    squared.d.theta = npf::grid::Axis::Squared { n: 6 };
+    let sq = Model::from_params(squared, 3, &raw).unwrap();
+    assert_eq!(
+        modelfile::from_binary(&modelfile::to_binary(&sq), path).unwrap(),
+        sq
+    );
+    let file = ModelFile {
+        model: sq.clone(),
+        fit: None,
+    };
+    let back = modelfile::from_json(&modelfile::to_json(&file), Path::new("a.json")).unwrap();
+    assert_eq!(back.model, sq);
     // A G grid with one theta node and a phi axis without nodes.
     let mut bad = Layout::default();
     bad.g.theta = npf::grid::Axis::CatmullRom { n: 1 };

@@ -53,7 +53,17 @@ fn undershooting() -> Model {
 
 /// The anisotropic layout with D and G varying in phi.
 fn anisotropic() -> Model {
-    let layout = Layout::anisotropic();
+    anisotropic_on(Layout::anisotropic())
+}
+
+/// The anisotropic layout with D on the squared theta_h axis.
+fn squared_d() -> Model {
+    let mut layout = Layout::anisotropic();
+    layout.d.theta = npf::grid::Axis::Squared { n: 6 };
+    anisotropic_on(layout)
+}
+
+fn anisotropic_on(layout: Layout) -> Model {
     let iso = known_factor_model(Layout::isotropic(90), &[0.2, 0.5]);
     let (d, g) = (layout.d, layout.g);
     let lobes = (0..2)
@@ -237,6 +247,7 @@ fn c_header_eval_matches_model_eval() {
         ("isotropic", isotropic()),
         ("undershooting", undershooting()),
         ("anisotropic", anisotropic()),
+        ("squared D", squared_d()),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let exe = compile_c(&model, dir.path());

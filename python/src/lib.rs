@@ -628,7 +628,7 @@ impl PyModel {
 
     /// The factor tables' axes: for "D", "F" and "G" a dict with "name" (the
     /// angle the table is indexed by), "theta" (node angles, radians), "kind"
-    /// (sqrt_angle, uniform or catmull_rom), and "phi" for a 2-D table.
+    /// (sqrt_angle, uniform, squared or catmull_rom), and "phi" for a 2-D table.
     #[getter]
     fn axes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let l = self.model().layout;
@@ -646,6 +646,7 @@ impl PyModel {
                 npf::grid::Axis::SqrtAngle { .. } => "sqrt_angle",
                 npf::grid::Axis::Uniform { .. } => "uniform",
                 npf::grid::Axis::CatmullRom { .. } => "catmull_rom",
+                npf::grid::Axis::Squared { .. } => "squared",
             };
             axis.set_item("kind", kind)?;
             if let Some(p) = grid.phi {

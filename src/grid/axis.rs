@@ -24,6 +24,14 @@ pub enum Axis {
         /// Number of nodes.
         n: usize,
     },
+    /// Uniform's span with squared spacing: node k at theta =
+    /// (k/(n-1))^2 * (n-1)/n * pi/2, k = 0..n-1 (for n = 6: 0, 3, 12, 27,
+    /// 48, 75 degrees, UTIA's theta_h range, dense near the specular peak);
+    /// linear in sqrt(theta) between nodes, constant past the last node.
+    Squared {
+        /// Number of nodes.
+        n: usize,
+    },
     /// n Catmull-Rom control points spanning [0, pi/2] inclusively,
     /// theta_k = k/(n-1) * pi/2, with pbrt's end conditions.
     CatmullRom {
@@ -36,7 +44,10 @@ impl Axis {
     /// Number of nodes.
     pub fn len(&self) -> usize {
         match *self {
-            Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::CatmullRom { n } => n,
+            Axis::SqrtAngle { n }
+            | Axis::Uniform { n }
+            | Axis::Squared { n }
+            | Axis::CatmullRom { n } => n,
         }
     }
 
@@ -48,7 +59,7 @@ impl Axis {
     /// Slots of this axis's stencils: 2 for the linear axes, 4 for Catmull-Rom.
     pub fn stencil_width(&self) -> usize {
         match self {
-            Axis::SqrtAngle { .. } | Axis::Uniform { .. } => 2,
+            Axis::SqrtAngle { .. } | Axis::Uniform { .. } | Axis::Squared { .. } => 2,
             Axis::CatmullRom { .. } => 4,
         }
     }
@@ -63,6 +74,7 @@ impl Axis {
         match *self {
             Axis::SqrtAngle { n } => (p / n as f64).powi(2) * FRAC_PI_2,
             Axis::Uniform { n } => p / n as f64 * FRAC_PI_2,
+            Axis::Squared { n } => squared_span(n) * (p / squared_last(n)).powi(2) * FRAC_PI_2,
             Axis::CatmullRom { n } => p / (n - 1) as f64 * FRAC_PI_2,
         }
     }
@@ -73,6 +85,7 @@ impl Axis {
         match *self {
             Axis::SqrtAngle { n } => x.sqrt() * n as f64,
             Axis::Uniform { n } => x * n as f64,
+            Axis::Squared { n } => (x / squared_span(n)).sqrt() * squared_last(n),
             Axis::CatmullRom { n } => x * (n - 1) as f64,
         }
     }
@@ -85,7 +98,9 @@ impl Axis {
     /// The interpolation stencil of an angle.
     pub fn stencil(&self, theta: f64) -> Stencil {
         match *self {
-            Axis::SqrtAngle { n } | Axis::Uniform { n } => linear_stencil(self.coord(theta), n),
+            Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::Squared { n } => {
+                linear_stencil(self.coord(theta), n)
+            }
             Axis::CatmullRom { n } => catmull_rom_stencil(self.coord(theta), n),
         }
     }
@@ -133,6 +148,22 @@ impl Axis {
         }
         q
     }
+}
+
+/// The last node of a [`Axis::Squared`] axis as a fraction of pi/2
+/// (Uniform's last node, (n-1)/n; 1 for a single node).
+fn squared_span(n: usize) -> f64 {
+    if n > 1 {
+        (n - 1) as f64 / n as f64
+    } else {
+        1.0
+    }
+}
+
+/// The coordinate of a [`Axis::Squared`] axis's last node (at least 1, so a
+/// single-node axis maps every angle to node 0).
+fn squared_last(n: usize) -> f64 {
+    (n.max(2) - 1) as f64
 }
 
 /// Snap to a node when a coordinate is within rounding of it, so samples on
@@ -289,6 +320,25 @@ mod tests {
     }
 
     #[test]
+    fn squared_axis_spans_uniforms_range_with_squared_spacing() {
+        let axis = Axis::Squared { n: 6 };
+        let deg: Vec<f64> = (0..6).map(|k| axis.node(k).to_degrees()).collect();
+        for (d, want) in deg.iter().zip([0.0, 3.0, 12.0, 27.0, 48.0, 75.0]) {
+            assert!((d - want).abs() < 1e-9, "{deg:?}");
+        }
+        for k in 0..6 {
+            let st = axis.stencil(axis.node(k));
+            assert_eq!(st.entries().collect::<Vec<_>>(), vec![(k, 1.0)]);
+        }
+        // Linear in sqrt(theta) between nodes; constant past the last one.
+        let values: Vec<f64> = (0..6).map(|k| axis.node(k).sqrt()).collect();
+        for t in [0.01f64, 0.3, 0.7, 1.2] {
+            assert!((axis.eval(&values, t) - t.sqrt()).abs() < 1e-12);
+        }
+        assert_eq!(axis.eval(&values, 1.5), values[5]);
+    }
+
+    #[test]
     fn phi_axis_wraps_and_reproduces_nodes() {
         let axis = PhiAxis { n: 48 };
         for k in 0..48 {
@@ -313,6 +363,7 @@ mod tests {
         for axis in [
             Axis::SqrtAngle { n: 90 },
             Axis::Uniform { n: 45 },
+            Axis::Squared { n: 6 },
             Axis::CatmullRom { n: 30 },
         ] {
             let q = axis.quadrature_weights(|t| t.cos() * t.sin());

@@ -431,14 +431,19 @@ INLINE REAL @pdf_s(REAL wox, REAL woy, REAL woz, REAL wix, REAL wiy, REAL wiz) {
 fn theta_stencil(axis: Axis) -> String {
     let snap = lit(SNAP);
     match axis {
-        Axis::SqrtAngle { n } | Axis::Uniform { n } => {
+        Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::Squared { n } => {
             if n == 1 {
                 return "    ti[0] = 0; tw[0] = 1.0;\n".into();
             }
-            let p = if matches!(axis, Axis::SqrtAngle { .. }) {
-                format!("sqrt(x) * {}", lit(n as f64))
-            } else {
-                format!("x * {}", lit(n as f64))
+            let p = match axis {
+                Axis::SqrtAngle { .. } => format!("sqrt(x) * {}", lit(n as f64)),
+                // Squared: sqrt(x / span) * (n - 1), span = (n - 1) / n.
+                Axis::Squared { .. } => format!(
+                    "sqrt(x * {}) * {}",
+                    lit(n as f64 / (n - 1) as f64),
+                    lit((n - 1) as f64)
+                ),
+                _ => format!("x * {}", lit(n as f64)),
             };
             format!(
                 "    REAL p = {p};
