@@ -530,16 +530,21 @@ impl FitSet {
         let merged = raws;
         stats.fitted = merged.len();
         let n = merged.len();
-        // A merged sample's angles, theta_i <= theta_o.
-        let angles = |j: usize| {
-            let r = &merged[j];
-            let a = samples.samples[r.index as usize].angles;
-            if r.swapped {
-                (a, a.theta_o, a.phi_o, a.theta_i, a.phi_i)
-            } else {
-                (a, a.theta_i, a.phi_i, a.theta_o, a.phi_o)
-            }
-        };
+        // Each merged sample's angles with theta_i <= theta_o, gathered once
+        // in set order: the passes below then read memory forward.
+        let gathered: Vec<[f64; 8]> = merged
+            .par_iter()
+            .map(|r| {
+                let a = samples.samples[r.index as usize].angles;
+                let (ti, pi, to, po) = if r.swapped {
+                    (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
+                } else {
+                    (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
+                };
+                [a.theta_h, a.phi_h, a.theta_d, a.phi_d, ti, pi, to, po]
+            })
+            .collect();
+        let angles = |j: usize| &gathered[j];
         let g_free = last_free_g_node(&layout, cut);
         let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
         let n_g = layout.g.n_theta();
@@ -553,28 +558,25 @@ impl FitSet {
             inv_cc: (0..n)
                 .into_par_iter()
                 .map(|j| {
-                    let (_, ti, _, to, _) = angles(j);
-                    1.0 / (ti.cos() * to.cos())
+                    let a = angles(j);
+                    1.0 / (a[4].cos() * a[6].cos())
                 })
                 .collect(),
             d_st: StencilTable::from_fn(layout.d.stencil_width(), n, |j| {
-                let a = angles(j).0;
-                dg.extend(
-                    fold_tail(dg.theta.stencil(a.theta_h), d_free, |_| 1.0),
-                    a.phi_h,
-                )
+                let a = angles(j);
+                dg.extend(fold_tail(dg.theta.stencil(a[0]), d_free, |_| 1.0), a[1])
             }),
             f_st: StencilTable::from_fn(layout.f.stencil_width(), n, |j| {
-                let a = angles(j).0;
-                fg.stencil(a.theta_d, a.phi_d)
+                let a = angles(j);
+                fg.stencil(a[2], a[3])
             }),
             gi_st: StencilTable::from_fn(layout.g.stencil_width(), n, |j| {
-                let (_, ti, pi, _, _) = angles(j);
-                gg.extend(fold_tail(gg.theta.stencil(ti), g_free, g_ramp), pi)
+                let a = angles(j);
+                gg.extend(fold_tail(gg.theta.stencil(a[4]), g_free, g_ramp), a[5])
             }),
             go_st: StencilTable::from_fn(layout.g.stencil_width(), n, |j| {
-                let (_, _, _, to, po) = angles(j);
-                gg.extend(fold_tail(gg.theta.stencil(to), g_free, g_ramp), po)
+                let a = angles(j);
+                gg.extend(fold_tail(gg.theta.stencil(a[6]), g_free, g_ramp), a[7])
             }),
             d_inc: Incidence::default(),
             f_inc: Incidence::default(),
@@ -582,7 +584,7 @@ impl FitSet {
             objective_offset: offset,
             stats,
         };
-        drop(merged);
+        drop((merged, gathered));
         let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
         set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
         set.f_inc = Incidence::build(layout.f.len(), &set.f_st, &total_w);
