@@ -263,6 +263,15 @@ pub fn run(args: FitArgs) -> CliResult {
         }
         rows.push(row);
         bar.inc(1);
+        // The fit's buffers were freed in whichever thread's malloc arena
+        // held them; hand them back, or the next table's fit (in other
+        // arenas) would stack on them: 4 MERL tables peaked at 581 MB
+        // instead of one fit's 434 MB.
+        #[cfg(all(target_os = "linux", target_env = "gnu"))]
+        // SAFETY: malloc_trim only releases free heap pages; it touches no live allocation.
+        unsafe {
+            libc::malloc_trim(0);
+        }
     }
     bar.finish_and_clear();
 
