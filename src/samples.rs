@@ -231,7 +231,7 @@ impl GIncidence {
             start,
         };
         let mut fill = g.start.clone();
-        for j in 0..gi.len() {
+        for (j, &tw) in total_w.iter().enumerate().take(gi.len()) {
             let n = touched(j, &mut buf);
             for &(k, u, v) in &buf[..n] {
                 let at = fill[k];
@@ -239,7 +239,7 @@ impl GIncidence {
                 g.u[at] = u;
                 g.v[at] = v;
                 fill[k] += 1;
-                g.has_data[k] |= total_w[j] > 0.0;
+                g.has_data[k] |= tw > 0.0;
             }
         }
         g
@@ -504,10 +504,10 @@ impl FitSet {
                     let r = raws[i];
                     let m = &mut raws[kept - 1];
                     let mut share = [0.0; 3];
-                    for c in 0..3 {
+                    for (c, share) in share.iter_mut().enumerate() {
                         let wsum = m.w[c] + r.w[c];
                         if wsum > 0.0 {
-                            share[c] = m.w[c] * r.w[c] * (m.y[c] - r.y[c]).powi(2) / wsum;
+                            *share = m.w[c] * r.w[c] * (m.y[c] - r.y[c]).powi(2) / wsum;
                             m.y[c] = (m.w[c] * m.y[c] + r.w[c] * r.y[c]) / wsum;
                         }
                         m.w[c] = wsum;
