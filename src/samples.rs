@@ -25,8 +25,8 @@
 use crate::grid::{Axis, Grid, Stencil, StencilTable};
 use crate::model::Layout;
 use npf_data_loaders::MeasuredSamples;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 /// How residuals are weighted in the least-squares objective.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -192,41 +192,55 @@ impl GIncidence {
 
     fn build(nodes: usize, gi: &StencilTable, go: &StencilTable, total_w: &[f64]) -> Self {
         const MAX_TOUCHED: usize = 2 * crate::grid::MAX_SUPPORT;
-        let mut per_node: Vec<Vec<(u32, f64, f64)>> = vec![Vec::new(); nodes];
-        for j in 0..gi.len() {
-            let mut touched = [(usize::MAX, 0.0, 0.0); MAX_TOUCHED];
+        // The points sample j touches, with its weights in G(theta_i) and G(theta_o).
+        let touched = |j: usize, out: &mut [(usize, f64, f64); MAX_TOUCHED]| {
             let mut n = 0;
             for (k, w) in gi.entries(j) {
-                touched[n] = (k, w, 0.0);
+                out[n] = (k, w, 0.0);
                 n += 1;
             }
             for (k, w) in go.entries(j) {
-                match touched[..n].iter_mut().find(|t| t.0 == k) {
+                match out[..n].iter_mut().find(|t| t.0 == k) {
                     Some(t) => t.2 = w,
                     None => {
-                        touched[n] = (k, 0.0, w);
+                        out[n] = (k, 0.0, w);
                         n += 1;
                     }
                 }
             }
-            for &(k, u, v) in &touched[..n] {
-                per_node[k].push((j as u32, u, v));
+            n
+        };
+        // Two passes (count, then fill in sample order): CSR without a list per point.
+        let mut buf = [(usize::MAX, 0.0, 0.0); MAX_TOUCHED];
+        let mut start = vec![0usize; nodes + 1];
+        for j in 0..gi.len() {
+            let n = touched(j, &mut buf);
+            for t in &buf[..n] {
+                start[t.0 + 1] += 1;
             }
         }
+        for k in 0..nodes {
+            start[k + 1] += start[k];
+        }
+        let total = start[nodes];
         let mut g = GIncidence {
-            start: vec![0],
-            ..Default::default()
+            sample: vec![0; total],
+            u: vec![0.0; total],
+            v: vec![0.0; total],
+            has_data: vec![false; nodes],
+            start,
         };
-        for list in per_node {
-            let mut data = false;
-            for (j, u, v) in list {
-                g.sample.push(j);
-                g.u.push(u);
-                g.v.push(v);
-                data |= total_w[j as usize] > 0.0;
+        let mut fill = g.start.clone();
+        for (j, &tw) in total_w.iter().enumerate().take(gi.len()) {
+            let n = touched(j, &mut buf);
+            for &(k, u, v) in &buf[..n] {
+                let at = fill[k];
+                g.sample[at] = j as u32;
+                g.u[at] = u;
+                g.v[at] = v;
+                fill[k] += 1;
+                g.has_data[k] |= tw > 0.0;
             }
-            g.has_data.push(data);
-            g.start.push(g.sample.len());
         }
         g
     }
@@ -361,18 +375,15 @@ fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stenc
     out
 }
 
+#[derive(Clone, Copy)]
 struct Raw {
     key: (i64, i64, i64, i64),
     y: [f64; 3],
     w: [f64; 3],
-    theta_i: f64,
-    theta_o: f64,
-    phi_i: f64,
-    phi_o: f64,
-    theta_h: f64,
-    phi_h: f64,
-    theta_d: f64,
-    phi_d: f64,
+    /// The measured sample's index (its angles are read from there).
+    index: u32,
+    /// Whether theta_i > theta_o (the key and stencils use them swapped).
+    swapped: bool,
 }
 
 impl FitSet {
@@ -424,44 +435,51 @@ impl FitSet {
             ..Default::default()
         };
         let q = |x: f64| (x * 1e7).round() as i64;
-        let mut raws: Vec<Raw> = Vec::with_capacity(samples.samples.len());
-        for (index, s) in samples.samples.iter().enumerate() {
-            if let Some(&value) = s.rgb.iter().find(|v| !v.is_finite() || **v < 0.0) {
-                return Err(SampleError::BadValue {
-                    source_name: samples.source.clone(),
-                    index,
-                    value,
-                });
-            }
-            let a = &s.angles;
-            let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
-            if a.theta_i > cut || a.theta_o > cut || ci <= 0.0 || co <= 0.0 {
-                stats.cut += 1;
-                continue;
-            }
-            let w = s.rgb.map(|v| options.weight(v, ci));
-            // G(in) G(out) is symmetric in the two directions, so ordering
-            // each pair by elevation (azimuths travel with their elevation)
-            // changes no model value.
-            let ((lo, plo), (hi, phi)) = if a.theta_i <= a.theta_o {
-                ((a.theta_i, a.phi_i), (a.theta_o, a.phi_o))
-            } else {
-                ((a.theta_o, a.phi_o), (a.theta_i, a.phi_i))
-            };
-            raws.push(Raw {
-                key: (q(a.theta_h), q(a.theta_d), q(lo), q(hi)),
-                y: s.rgb,
-                w,
-                theta_i: lo,
-                theta_o: hi,
-                phi_i: plo,
-                phi_o: phi,
-                theta_h: a.theta_h,
-                phi_h: a.phi_h,
-                theta_d: a.theta_d,
-                phi_d: a.phi_d,
+        if let Some(index) = samples
+            .samples
+            .par_iter()
+            .position_first(|s| s.rgb.iter().any(|v| !v.is_finite() || *v < 0.0))
+        {
+            let s = &samples.samples[index];
+            let &value = s.rgb.iter().find(|v| !v.is_finite() || **v < 0.0).unwrap();
+            return Err(SampleError::BadValue {
+                source_name: samples.source.clone(),
+                index,
+                value,
             });
         }
+        // Weighted samples inside the cut-off, in input order (rayon's
+        // collect keeps it, for any thread count).
+        let mut raws: Vec<Raw> = samples
+            .samples
+            .par_iter()
+            .enumerate()
+            .filter_map(|(index, s)| {
+                let a = &s.angles;
+                let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
+                if a.theta_i > cut || a.theta_o > cut || ci <= 0.0 || co <= 0.0 {
+                    return None;
+                }
+                // G(in) G(out) is symmetric in the two directions, so ordering
+                // each pair by elevation (azimuths travel with their elevation)
+                // changes no model value.
+                let swapped = a.theta_i > a.theta_o;
+                let (lo, hi) = if swapped {
+                    (a.theta_o, a.theta_i)
+                } else {
+                    (a.theta_i, a.theta_o)
+                };
+                Some(Raw {
+                    // Sort key: theta_i, theta_o, theta_h, theta_d (quantised).
+                    key: (q(lo), q(hi), q(a.theta_h), q(a.theta_d)),
+                    y: s.rgb,
+                    w: s.rgb.map(|v| options.weight(v, ci)),
+                    index: index as u32,
+                    swapped,
+                })
+            })
+            .collect();
+        stats.cut = stats.input - raws.len();
         if raws.is_empty() {
             return Err(SampleError::Empty {
                 source_name: samples.source.clone(),
@@ -470,79 +488,103 @@ impl FitSet {
                 max_theta_deg: options.max_theta_deg,
             });
         }
-        // Merge reciprocal partners (first occurrence keeps its place).
-        let mut merged: Vec<Raw> = Vec::with_capacity(raws.len());
+        // Order by theta_i then theta_o: the G control-point lists then read
+        // memory mostly forward. The sort is stable, so reciprocal partners
+        // (equal keys) end up adjacent and in input order.
+        raws.par_sort_by_key(|r| r.key);
+        // Merge reciprocal partners: each run of equal keys into its first,
+        // in input order, as a pass in input order would.
         let mut offset = 0.0;
         if merge {
-            let mut seen: HashMap<(i64, i64, i64, i64), usize> = HashMap::with_capacity(raws.len());
-            for r in raws {
-                match seen.get(&r.key) {
-                    Some(&i) => {
-                        let m = &mut merged[i];
-                        for c in 0..3 {
-                            let wsum = m.w[c] + r.w[c];
-                            if wsum > 0.0 {
-                                offset += m.w[c] * r.w[c] * (m.y[c] - r.y[c]).powi(2) / wsum;
-                                m.y[c] = (m.w[c] * m.y[c] + r.w[c] * r.y[c]) / wsum;
-                            }
-                            m.w[c] = wsum;
+            let mut kept = 0;
+            // Each merged partner's share of the offset, summed in input order below.
+            let mut shares: Vec<(u32, [f64; 3])> = Vec::new();
+            for i in 0..raws.len() {
+                if kept > 0 && raws[kept - 1].key == raws[i].key {
+                    let r = raws[i];
+                    let m = &mut raws[kept - 1];
+                    let mut share = [0.0; 3];
+                    for (c, share) in share.iter_mut().enumerate() {
+                        let wsum = m.w[c] + r.w[c];
+                        if wsum > 0.0 {
+                            *share = m.w[c] * r.w[c] * (m.y[c] - r.y[c]).powi(2) / wsum;
+                            m.y[c] = (m.w[c] * m.y[c] + r.w[c] * r.y[c]) / wsum;
                         }
-                        stats.merged_pairs += 1;
+                        m.w[c] = wsum;
                     }
-                    None => {
-                        seen.insert(r.key, merged.len());
-                        merged.push(r);
-                    }
+                    shares.push((r.index, share));
+                    stats.merged_pairs += 1;
+                } else {
+                    raws[kept] = raws[i];
+                    kept += 1;
                 }
             }
-        } else {
-            merged = raws;
+            raws.truncate(kept);
+            shares.sort_unstable_by_key(|s| s.0);
+            for (_, share) in shares {
+                for v in share {
+                    offset += v;
+                }
+            }
         }
-        // Order by theta_i then theta_o: the G control-point lists then read
-        // memory mostly forward.
-        merged.sort_by(|a, b| {
-            a.key
-                .2
-                .cmp(&b.key.2)
-                .then(a.key.3.cmp(&b.key.3))
-                .then(a.key.0.cmp(&b.key.0))
-                .then(a.key.1.cmp(&b.key.1))
-        });
+        let merged = raws;
         stats.fitted = merged.len();
         let n = merged.len();
+        // Each merged sample's angles with theta_i <= theta_o, gathered once
+        // in set order: the passes below then read memory forward.
+        let gathered: Vec<[f64; 8]> = merged
+            .par_iter()
+            .map(|r| {
+                let a = samples.samples[r.index as usize].angles;
+                let (ti, pi, to, po) = if r.swapped {
+                    (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
+                } else {
+                    (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
+                };
+                [a.theta_h, a.phi_h, a.theta_d, a.phi_d, ti, pi, to, po]
+            })
+            .collect();
+        let angles = |j: usize| &gathered[j];
+        let g_free = last_free_g_node(&layout, cut);
+        let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
+        let n_g = layout.g.n_theta();
+        let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
+        let (dg, fg, gg): (Grid, Grid, Grid) = (layout.d, layout.f, layout.g);
         let mut set = FitSet {
             layout,
             options,
-            y: Vec::with_capacity(n),
-            w: Vec::with_capacity(n),
-            inv_cc: Vec::with_capacity(n),
-            d_st: StencilTable::with_capacity(layout.d.stencil_width(), n),
-            f_st: StencilTable::with_capacity(layout.f.stencil_width(), n),
-            gi_st: StencilTable::with_capacity(layout.g.stencil_width(), n),
-            go_st: StencilTable::with_capacity(layout.g.stencil_width(), n),
+            y: merged.par_iter().map(|r| r.y).collect(),
+            w: merged.par_iter().map(|r| r.w).collect(),
+            inv_cc: (0..n)
+                .into_par_iter()
+                .map(|j| {
+                    let a = angles(j);
+                    1.0 / (a[4].cos() * a[6].cos())
+                })
+                .collect(),
+            d_st: StencilTable::from_fn(layout.d.stencil_width(), n, |j| {
+                let a = angles(j);
+                dg.extend(fold_tail(dg.theta.stencil(a[0]), d_free, |_| 1.0), a[1])
+            }),
+            f_st: StencilTable::from_fn(layout.f.stencil_width(), n, |j| {
+                let a = angles(j);
+                fg.stencil(a[2], a[3])
+            }),
+            gi_st: StencilTable::from_fn(layout.g.stencil_width(), n, |j| {
+                let a = angles(j);
+                gg.extend(fold_tail(gg.theta.stencil(a[4]), g_free, g_ramp), a[5])
+            }),
+            go_st: StencilTable::from_fn(layout.g.stencil_width(), n, |j| {
+                let a = angles(j);
+                gg.extend(fold_tail(gg.theta.stencil(a[6]), g_free, g_ramp), a[7])
+            }),
             d_inc: Incidence::default(),
             f_inc: Incidence::default(),
             g_inc: GIncidence::default(),
             objective_offset: offset,
             stats,
         };
-        let g_free = last_free_g_node(&layout, cut);
-        let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
-        let n_g = layout.g.n_theta();
-        let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
-        let (dg, fg, gg): (Grid, Grid, Grid) = (layout.d, layout.f, layout.g);
-        for r in &merged {
-            set.y.push(r.y);
-            set.w.push(r.w);
-            set.inv_cc.push(1.0 / (r.theta_i.cos() * r.theta_o.cos()));
-            let d = fold_tail(dg.theta.stencil(r.theta_h), d_free, |_| 1.0);
-            set.d_st.push(&dg.extend(d, r.phi_h));
-            set.f_st.push(&fg.stencil(r.theta_d, r.phi_d));
-            let gi = fold_tail(gg.theta.stencil(r.theta_i), g_free, g_ramp);
-            set.gi_st.push(&gg.extend(gi, r.phi_i));
-            let go = fold_tail(gg.theta.stencil(r.theta_o), g_free, g_ramp);
-            set.go_st.push(&gg.extend(go, r.phi_o));
-        }
+        drop((merged, gathered));
         let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
         set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
         set.f_inc = Incidence::build(layout.f.len(), &set.f_st, &total_w);

@@ -170,14 +170,20 @@ pub fn fit_with_progress(
 #[derive(Args, Debug)]
 pub struct FitArgs {
     /// Measured BRDF: MERL .binary (isotropic layout) or UTIA .bin
-    /// (anisotropic layout, 2010 parameters for three lobes).
+    /// (anisotropic layout, 2010 parameters for three lobes); or a folder,
+    /// whose every .binary and .bin table is fitted into the -o folder.
     pub input: PathBuf,
     /// Read the input as this format instead of detecting it.
     #[arg(long, value_enum)]
     pub format: Option<super::FormatArg>,
-    /// Output model; the extension picks the form (.json or .npfb).
+    /// Output model; the extension picks the form (.json or .npfb). For a
+    /// folder input, the output folder (created if missing): one model per
+    /// table, named after it, and summary.csv.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Folder input only: the form of the models written [default: json].
+    #[arg(long, value_enum)]
+    pub form: Option<ModelForm>,
     /// How to fit.
     #[command(flatten)]
     pub config: FitFlags,
@@ -201,6 +207,25 @@ pub struct FitArgs {
     /// Metric --budget minimises.
     #[arg(long, value_enum, default_value_t = BudgetMetric::LogRmse, requires = "budget")]
     pub budget_metric: BudgetMetric,
+}
+
+/// `--form`: the model file form of a folder fit's outputs.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelForm {
+    /// JSON, with the fit's provenance (sweeps, time, errors).
+    Json,
+    /// Compact binary (.npfb), the model alone.
+    Npfb,
+}
+
+impl ModelForm {
+    /// The file extension of the form.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ModelForm::Json => "json",
+            ModelForm::Npfb => "npfb",
+        }
+    }
 }
 
 /// What `--budget` minimises.
@@ -234,13 +259,41 @@ pub fn print_summary(f: &Fitted) {
     );
 }
 
-/// Run `npf fit`.
+/// Run `npf fit`: one table, or every table of a folder
+/// (see [`super::fit_folder`]).
 pub fn run(args: FitArgs) -> CliResult {
+    if args.input.is_dir() {
+        return super::fit_folder::run(args);
+    }
+    if let Some(form) = args.form {
+        return Err(CliError::Message(format!(
+            "--form {}: only for a folder input (a single output's extension picks its form)",
+            form.extension()
+        )));
+    }
     modelfile::Form::of(&args.output)?;
     let config = args.config.config(args.model);
     config.validate()?;
     check_outputs(&[&args.output], &[&args.input], args.force)?;
-    let (table, samples) = super::read_measured(&args.input, args.format)?;
+    let fitted = fit_table(&args.input, &args.output, &args, &config, !args.quiet)?;
+    if !args.quiet {
+        print_summary(&fitted);
+        eprintln!("wrote {}", args.output.display());
+    }
+    Ok(())
+}
+
+/// Read `input`, fit it as `args` asks (a plain fit, or a `--target` /
+/// `--budget` selection) and write the model to `output`; `verbose` shows
+/// the sweep progress bar and the selection's trial lines.
+pub(super) fn fit_table(
+    input: &std::path::Path,
+    output: &std::path::Path,
+    args: &FitArgs,
+    config: &FitConfig,
+    verbose: bool,
+) -> Result<Fitted, CliError> {
+    let (table, samples) = super::read_measured(input, args.format)?;
     let fitted = match (args.target, args.budget) {
         (Some(target), _) => {
             // A rendering-PSNR target renders the input table once as the reference.
@@ -253,8 +306,8 @@ pub fn run(args: FitArgs) -> CliResult {
             });
             select(
                 &samples,
-                &args,
-                &config,
+                verbose,
+                config,
                 Selection::Target(target),
                 reference.as_ref(),
             )?
@@ -266,27 +319,24 @@ pub fn run(args: FitArgs) -> CliResult {
             };
             select(
                 &samples,
-                &args,
-                &config,
+                verbose,
+                config,
                 Selection::Budget(budget, metric),
                 None,
             )?
         }
-        (None, None) => fit_with_progress(&samples, &config, !args.quiet)?,
+        (None, None) => fit_with_progress(&samples, config, verbose)?,
     };
+    drop(table);
     modelfile::write(
-        &args.output,
+        output,
         &ModelFile {
             model: fitted.result.model.clone(),
             fit: Some(fitted.info.clone()),
         },
         args.force,
     )?;
-    if !args.quiet {
-        print_summary(&fitted);
-        eprintln!("wrote {}", args.output.display());
-    }
-    Ok(())
+    Ok(fitted)
 }
 
 enum Selection {
@@ -298,7 +348,7 @@ enum Selection {
 /// fit, and records the choice and every trial in the fit record.
 fn select(
     samples: &MeasuredSamples,
-    args: &FitArgs,
+    verbose: bool,
     base: &FitConfig,
     how: Selection,
     reference: Option<&crate::evaluation::Reference>,
@@ -321,7 +371,7 @@ fn select(
             ),
             None => None,
         };
-        if !args.quiet {
+        if verbose {
             eprintln!(
                 "  {} lobes x {} values ({} parameters): log RMSE {:.4e}, relative RMSE {:.4e}{} ({:.1} s)",
                 c.lobes,
@@ -345,7 +395,7 @@ fn select(
     };
     let (chosen, record) = match how {
         Selection::Target(target) => {
-            if !args.quiet {
+            if verbose {
                 eprintln!(
                     "choosing the smallest model with {} {} {}",
                     target.name(),
@@ -354,7 +404,7 @@ fn select(
                 );
             }
             let (i, met, trials) = selection::smallest_meeting(target, &mut try_candidate)?;
-            if !met && !args.quiet {
+            if !met && verbose {
                 eprintln!(
                     "warning: no candidate meets {} {} {}; keeping the best ({} parameters, {:.4e})",
                     target.name(), target.relation(), target.threshold(), trials[i].params, trials[i].value
@@ -382,7 +432,7 @@ fn select(
         }
     };
     let mut fitted = kept.swap_remove(chosen);
-    if !args.quiet {
+    if verbose {
         eprintln!(
             "chose {} lobes x {} values: {} parameters",
             fitted.info.lobes,

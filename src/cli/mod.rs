@@ -12,6 +12,7 @@ pub mod energy_plot;
 pub mod eval;
 pub mod export;
 pub mod fit;
+pub mod fit_folder;
 pub mod info;
 pub mod png;
 pub mod reconstruct;

@@ -172,6 +172,34 @@ impl StencilTable {
         debug_assert_eq!(self.w.len(), start + self.width);
     }
 
+    /// The table of samples `0..n` whose stencils `stencil(j)` gives, as
+    /// [`push`](Self::push) would store them one by one; built in parallel
+    /// (the result does not depend on the thread count).
+    pub fn from_fn(width: usize, n: usize, stencil: impl Fn(usize) -> Stencil + Sync) -> Self {
+        use rayon::prelude::*;
+        // Samples per task: large enough to amortise the task, small enough to balance.
+        const CHUNK: usize = 4096;
+        let mut idx = vec![0u32; width * n];
+        let mut w = vec![0.0f64; width * n];
+        idx.par_chunks_mut(width * CHUNK)
+            .zip(w.par_chunks_mut(width * CHUNK))
+            .enumerate()
+            .for_each(|(c, (idx, w))| {
+                for (k, (idx, w)) in idx.chunks_mut(width).zip(w.chunks_mut(width)).enumerate() {
+                    let st = stencil(c * CHUNK + k);
+                    for s in 0..st.len as usize {
+                        if s < width {
+                            idx[s] = st.idx[s];
+                            w[s] = st.w[s];
+                        } else {
+                            assert!(st.w[s] == 0.0, "stencil wider than its table ({width})");
+                        }
+                    }
+                }
+            });
+        StencilTable { width, idx, w }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.w.len().checked_div(self.width).unwrap_or(0)

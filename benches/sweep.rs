@@ -1,0 +1,62 @@
+//! The fit's kernels on a synthetic MERL-sized table (GGX + Lambert,
+//! `npf::synth`, all 1.46 M cells): building the sample set
+//! (`FitSet::build`: weights, reciprocal merge, stencils, incidence) and a
+//! one-sweep fit (start plus one AWLS sweep of D, F, G, diffuse/scales and
+//! gauge), each in a one-thread and a two-thread pool.
+//!
+//! cargo bench --bench sweep
+//!
+//! Wall time (the kernels are parallel, so thread CPU time would not say
+//! what a fit waits for); on a shared machine quote it with the load.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use npf::model::Layout;
+use npf::samples::{FitSet, SampleOptions};
+use npf::solver::{Executor, FitOptions};
+use npf::synth::GgxLambert;
+
+fn kernels(c: &mut Criterion) {
+    let brdf = GgxLambert {
+        kd: [0.1, 0.1, 0.1],
+        f0: [0.9, 0.7, 0.5],
+        alpha: 0.2,
+    };
+    let samples = brdf.table().samples("synthetic");
+    let mut g = c.benchmark_group("fit");
+    g.sample_size(10);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        g.bench_function(format!("sample set, {threads} thread(s)"), |b| {
+            b.iter(|| {
+                pool.install(|| {
+                    FitSet::build(&samples, Layout::default(), SampleOptions::default())
+                        .expect("set")
+                })
+            })
+        });
+        let set =
+            FitSet::build(&samples, Layout::default(), SampleOptions::default()).expect("set");
+        g.bench_function(format!("start + 1 sweep, {threads} thread(s)"), |b| {
+            b.iter(|| {
+                pool.install(|| {
+                    Executor::new(
+                        &set,
+                        FitOptions {
+                            max_sweeps: 1,
+                            ..Default::default()
+                        },
+                    )
+                    .run()
+                    .expect("fit")
+                })
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, kernels);
+criterion_main!(benches);
