@@ -258,6 +258,9 @@ pub struct FitSet {
     pub w: Vec<[f64; 3]>,
     /// 1 / (cos theta_i cos theta_o).
     pub inv_cc: Vec<f64>,
+    /// (theta_i, theta_o, cos(phi_i - phi_o)) per sample: what the diffuse
+    /// forms read.
+    pub dirs: Vec<[f32; 3]>,
     /// D stencils (tail folded).
     pub d_st: StencilTable,
     /// F stencils.
@@ -516,6 +519,7 @@ impl FitSet {
             y: Vec::with_capacity(n),
             w: Vec::with_capacity(n),
             inv_cc: Vec::with_capacity(n),
+            dirs: Vec::with_capacity(n),
             d_st: StencilTable::with_capacity(layout.d.stencil_width(), n),
             f_st: StencilTable::with_capacity(layout.f.stencil_width(), n),
             gi_st: StencilTable::with_capacity(layout.g.stencil_width(), n),
@@ -535,6 +539,11 @@ impl FitSet {
             set.y.push(r.y);
             set.w.push(r.w);
             set.inv_cc.push(1.0 / (r.theta_i.cos() * r.theta_o.cos()));
+            set.dirs.push([
+                r.theta_i as f32,
+                r.theta_o as f32,
+                (r.phi_i - r.phi_o).cos() as f32,
+            ]);
             let d = fold_tail(dg.theta.stencil(r.theta_h), d_free, |_| 1.0);
             set.d_st.push(&dg.extend(d, r.phi_h));
             set.f_st.push(&fg.stencil(r.theta_d, r.phi_d));
@@ -562,7 +571,7 @@ impl FitSet {
 
     /// Approximate heap size in bytes, for reports.
     pub fn heap_bytes(&self) -> usize {
-        let per_sample = 2 * 24 + 8;
+        let per_sample = 2 * 24 + 8 + 12;
         let st = self.d_st.heap_bytes()
             + self.f_st.heap_bytes()
             + self.gi_st.heap_bytes()
