@@ -220,6 +220,11 @@ pub enum DiffuseForm {
 }
 
 impl DiffuseForm {
+    /// Whether this is the Lambertian form.
+    pub fn is_lambert(&self) -> bool {
+        *self == DiffuseForm::Lambert
+    }
+
     /// The form's short name (as the CLI and reports spell it).
     pub fn name(&self) -> &'static str {
         match self {
@@ -307,9 +312,9 @@ pub struct Model {
     pub layout: Layout,
     /// Diffuse scale d_C (1/sr); the term is d_C times the form's factor.
     pub diffuse: [f32; 3],
-    /// The diffuse term's directional form (absent in older files:
-    /// Lambertian).
-    #[serde(default)]
+    /// The diffuse term's directional form (absent in older files and not
+    /// written for Lambertian models, whose JSON is what it always was).
+    #[serde(default, skip_serializing_if = "DiffuseForm::is_lambert")]
     pub diffuse_form: DiffuseForm,
     /// F_C(theta_d), one table per channel.
     pub fresnel: [Vec<f32>; 3],
