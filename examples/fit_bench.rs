@@ -110,7 +110,7 @@ fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
                 Stage::D(_) => 0,
                 Stage::F => 1,
                 Stage::G(_) | Stage::SmoothG(_) => 2,
-                Stage::DiffuseAndScales => 3,
+                Stage::DiffuseAndScales | Stage::DiffuseForm => 3,
                 Stage::Gauge => 4,
                 Stage::Extrapolate => 5,
             };

@@ -70,6 +70,7 @@ fn main() {
         Model {
             layout,
             diffuse: iso.diffuse,
+            diffuse_form: Default::default(),
             fresnel: iso.fresnel.clone(),
             lobes: alphas
                 .iter()

@@ -53,6 +53,7 @@ pub fn independent_g_model(per_channel: &[Model; 3]) -> Model {
     Model {
         layout,
         diffuse,
+        diffuse_form: Default::default(),
         fresnel,
         lobes,
     }

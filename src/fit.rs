@@ -11,7 +11,7 @@ use crate::model::Layout;
 use crate::modelfile::FitInfo;
 use crate::samples::{FitSet, SampleError, SampleOptions, Weighting};
 use crate::solver::{
-    init, Executor, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
+    init, DiffuseKind, Executor, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
     INDEPENDENT_CHANNELS,
 };
 use npf_data_loaders::MeasuredSamples;
@@ -92,6 +92,8 @@ pub struct FitConfig {
     pub accelerate: bool,
     /// Worker threads (0: all cores). Results are identical for any count.
     pub threads: usize,
+    /// The factor model's diffuse form (docs/fitting.md).
+    pub diffuse: DiffuseKind,
 }
 
 impl Default for FitConfig {
@@ -113,6 +115,7 @@ impl Default for FitConfig {
             d_monotone_from: o.d_monotone_from_deg,
             accelerate: o.accelerate,
             threads: 0,
+            diffuse: o.diffuse,
         }
     }
 }
@@ -241,6 +244,7 @@ impl FitConfig {
             trace_stages: false,
             d_monotone_from_deg: self.d_monotone_from,
             channel_mask: FitOptions::default().channel_mask,
+            diffuse: self.diffuse,
         }
     }
 

@@ -130,6 +130,7 @@ impl GgxParams {
         Model {
             layout,
             diffuse: self.kd.map(|k| (k / PI) as f32),
+            diffuse_form: Default::default(),
             fresnel: self
                 .f0
                 .map(|f0| tabulate(layout.f, &|t| schlick(f0, t.cos()))),

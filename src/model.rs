@@ -1,9 +1,10 @@
 //! The shared-factor non-parametric microfacet model (Peng, Zheng, Lv):
 //!
-//! rho_C(wi, wo) = d_C + sum_m s_C^m D^m(theta_h) F_C(theta_d) G^m(theta_i) G^m(theta_o) / (cos theta_i cos theta_o)
+//! rho_C(wi, wo) = d_C b_C(wi, wo) + sum_m s_C^m D^m(theta_h) F_C(theta_d) G^m(theta_i) G^m(theta_o) / (cos theta_i cos theta_o)
 //!
 //! D^m and G^m are shared by the three channels; F_C, d_C and s_C^m are per
-//! channel. Values are BRDF values in 1/sr (MERL's physical units). A model
+//! channel. b_C is the diffuse form's directional factor ([`DiffuseForm`]):
+//! 1 for the paper's Lambertian term. Values are BRDF values in 1/sr (MERL's physical units). A model
 //! stores its parameters as f32: that is what its files hold, so a model
 //! written and read back is the same model, bit for bit.
 
@@ -81,6 +82,9 @@ pub enum ModelError {
     /// A negative d, s, D or F value.
     #[error("negative d, s, D or F value")]
     Negative,
+    /// The diffuse form's data are not valid.
+    #[error("diffuse form: {0}")]
+    DiffuseForm(String),
 }
 
 impl Layout {
@@ -175,13 +179,143 @@ pub struct Lobe {
     pub g: Vec<f32>,
 }
 
-/// A fitted model: layout, Lambertian term, Fresnel tables and lobes.
+/// Nodes of an energy-coupled diffuse form's albedo tables: theta_k =
+/// k / (n - 1) * pi / 2, linear between nodes.
+pub const ALBEDO_NODES: usize = 32;
+
+/// How the diffuse term depends on the directions: d_C b_C(wi, wo).
+///
+/// Every form is reciprocal and has no free parameter the AWLS sweep
+/// updates (Oren-Nayar's sigma and the albedo tables are refreshed between
+/// sweeps, each refresh kept only when the objective falls), so the model
+/// keeps its parameter count.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "form", rename_all = "kebab-case")]
+pub enum DiffuseForm {
+    /// b = 1: the paper's Lambertian term (d_C in 1/sr).
+    #[default]
+    Lambert,
+    /// Kelemen / Kulla-Conty coupling to the energy the specular lobes
+    /// leave: b_C = (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - Eavg_C),
+    /// E_C the directional albedo (integral of f cos) of the specular lobes
+    /// alone, clamped to [0, 1], and Eavg_C = 2 int E_C(mu) mu dmu. Its
+    /// albedo is then pi d_C (1 - E_C(theta_o)): with pi d_C = 1 the whole
+    /// model has albedo 1 at every angle. (The (pi - E_avg)
+    /// denominator is the same with E_avg scaled by pi and d_C by 1/pi.)
+    EnergyCoupled {
+        /// E_C on [`ALBEDO_NODES`] uniform theta nodes, per channel.
+        albedo: [Vec<f32>; 3],
+        /// Eavg_C.
+        average: [f32; 3],
+    },
+    /// Oren-Nayar's qualitative rough-diffuse factor: b = A + B max(0,
+    /// cos(phi_i - phi_o)) sin(alpha) tan(beta), alpha = max(theta_i,
+    /// theta_o), beta = min, A = 1 - sigma^2 / (2 (sigma^2 + 0.33)), B =
+    /// 0.45 sigma^2 / (sigma^2 + 0.09); sigma (radians) shared by the
+    /// channels.
+    OrenNayar {
+        /// Facet slope deviation (radians).
+        sigma: f32,
+    },
+}
+
+impl DiffuseForm {
+    /// Whether this is the Lambertian form.
+    pub fn is_lambert(&self) -> bool {
+        *self == DiffuseForm::Lambert
+    }
+
+    /// The form's short name (as the CLI and reports spell it).
+    pub fn name(&self) -> &'static str {
+        match self {
+            DiffuseForm::Lambert => "lambert",
+            DiffuseForm::EnergyCoupled { .. } => "energy-coupled",
+            DiffuseForm::OrenNayar { .. } => "oren-nayar",
+        }
+    }
+
+    /// b_C for elevations theta_i, theta_o (radians, above the horizon) and
+    /// the cosine of the azimuth difference.
+    #[inline]
+    pub fn factor(&self, theta_i: f64, theta_o: f64, cos_dphi: f64) -> [f64; 3] {
+        match self {
+            DiffuseForm::Lambert => [1.0; 3],
+            DiffuseForm::EnergyCoupled { albedo, average } => std::array::from_fn(|c| {
+                let t = &albedo[c];
+                let (ei, eo) = (table_at(t, theta_i), table_at(t, theta_o));
+                (1.0 - ei) * (1.0 - eo) / (1.0 - average[c] as f64).max(1e-3)
+            }),
+            DiffuseForm::OrenNayar { sigma } => {
+                [oren_nayar(*sigma as f64, theta_i, theta_o, cos_dphi); 3]
+            }
+        }
+    }
+
+    fn validate(&self) -> Result<(), ModelError> {
+        match self {
+            DiffuseForm::Lambert => Ok(()),
+            DiffuseForm::EnergyCoupled { albedo, average } => {
+                for (c, t) in albedo.iter().enumerate() {
+                    if t.len() < 2 {
+                        return Err(ModelError::TableSize {
+                            table: format!("diffuse albedo channel {c}"),
+                            got: t.len(),
+                            expected: ALBEDO_NODES,
+                        });
+                    }
+                }
+                let ok = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
+                if albedo.iter().flatten().chain(average).all(|&v| ok(v)) {
+                    Ok(())
+                } else {
+                    Err(ModelError::DiffuseForm(
+                        "energy-coupled albedo values must lie in [0, 1]".into(),
+                    ))
+                }
+            }
+            DiffuseForm::OrenNayar { sigma } => {
+                if sigma.is_finite() && *sigma >= 0.0 {
+                    Ok(())
+                } else {
+                    Err(ModelError::DiffuseForm(format!(
+                        "Oren-Nayar sigma must be finite and >= 0, got {sigma}"
+                    )))
+                }
+            }
+        }
+    }
+}
+
+/// Linear interpolation of a table on uniform theta nodes over [0, pi/2].
+#[inline]
+fn table_at(t: &[f32], theta: f64) -> f64 {
+    let x = (theta / std::f64::consts::FRAC_PI_2).clamp(0.0, 1.0) * (t.len() - 1) as f64;
+    let k = (x as usize).min(t.len() - 2);
+    let u = x - k as f64;
+    t[k] as f64 * (1.0 - u) + t[k + 1] as f64 * u
+}
+
+/// Oren-Nayar's qualitative factor (see [`DiffuseForm::OrenNayar`]).
+#[inline]
+pub fn oren_nayar(sigma: f64, theta_i: f64, theta_o: f64, cos_dphi: f64) -> f64 {
+    let s2 = sigma * sigma;
+    let a = 1.0 - 0.5 * s2 / (s2 + 0.33);
+    let b = 0.45 * s2 / (s2 + 0.09);
+    let (alpha, beta) = (theta_i.max(theta_o), theta_i.min(theta_o));
+    a + b * cos_dphi.max(0.0) * alpha.sin() * beta.tan()
+}
+
+/// A fitted model: layout, diffuse term, Fresnel tables and lobes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Model {
     /// Where every table's nodes sit.
     pub layout: Layout,
-    /// Lambertian term d_C (1/sr).
+    /// Diffuse scale d_C (1/sr); the term is d_C times the form's factor.
     pub diffuse: [f32; 3],
+    /// The diffuse term's directional form (absent in older files and not
+    /// written for Lambertian models, whose JSON is what it always was).
+    #[serde(default, skip_serializing_if = "DiffuseForm::is_lambert")]
+    pub diffuse_form: DiffuseForm,
     /// F_C(theta_d), one table per channel.
     pub fresnel: [Vec<f32>; 3],
     /// The specular lobes.
@@ -248,6 +382,7 @@ impl Model {
         let m = Model {
             layout,
             diffuse,
+            diffuse_form: DiffuseForm::Lambert,
             fresnel,
             lobes,
         };
@@ -281,6 +416,7 @@ impl Model {
             size(format!("lobe {m} D"), lobe.d.len(), l.d.len())?;
             size(format!("lobe {m} G"), lobe.g.len(), l.g.len())?;
         }
+        self.diffuse_form.validate()?;
         let params = self.params();
         if let Some(i) = params.iter().position(|v| !v.is_finite()) {
             return Err(ModelError::NotFinite(i));
@@ -303,7 +439,7 @@ impl Model {
     /// BRDF value (1/sr) per channel for a configuration; zero when either
     /// direction is at or below the horizon, never negative.
     pub fn eval_angles(&self, a: &Angles) -> [f64; 3] {
-        let mut v = self.diffuse.map(f64::from);
+        let mut v = self.diffuse_term(a.theta_i, a.theta_o, (a.phi_i - a.phi_o).cos());
         if !self.lobe_terms(a, |_, t| {
             for c in 0..3 {
                 v[c] += t[c];
@@ -316,6 +452,36 @@ impl Model {
         // value is >= 0 this changes nothing, elsewhere it only moves the
         // value towards any measurement.
         v.map(|x| x.max(0.0))
+    }
+
+    /// The diffuse term d_C b_C at elevations theta_i, theta_o and azimuth
+    /// difference cosine `cos_dphi` (only Oren-Nayar reads it).
+    #[inline]
+    pub fn diffuse_term(&self, theta_i: f64, theta_o: f64, cos_dphi: f64) -> [f64; 3] {
+        let d = self.diffuse.map(f64::from);
+        if let DiffuseForm::Lambert = self.diffuse_form {
+            return d;
+        }
+        let b = self.diffuse_form.factor(theta_i, theta_o, cos_dphi);
+        std::array::from_fn(|c| d[c] * b[c])
+    }
+
+    /// The diffuse term's directional albedo (integral of d_C b_C cos
+    /// theta_i) at view angle theta_o: exact for the Lambertian and
+    /// energy-coupled forms, Oren-Nayar's A term only (a lower bound) for
+    /// that form. Samplers weigh their diffuse component by it.
+    pub fn diffuse_albedo(&self, theta_o: f64) -> [f64; 3] {
+        let d = self.diffuse.map(|v| std::f64::consts::PI * v as f64);
+        match &self.diffuse_form {
+            DiffuseForm::Lambert => d,
+            DiffuseForm::EnergyCoupled { albedo, .. } => {
+                std::array::from_fn(|c| d[c] * (1.0 - table_at(&albedo[c], theta_o)))
+            }
+            DiffuseForm::OrenNayar { sigma } => {
+                let s2 = (*sigma as f64).powi(2);
+                d.map(|v| v * (1.0 - 0.5 * s2 / (s2 + 0.33)))
+            }
+        }
     }
 
     /// The specular terms s_C^m F_C D^m G^m G^m / (cos theta_i cos theta_o)
@@ -390,7 +556,15 @@ impl Model {
             theta_o: acos(wo[2]),
             phi_o: 0.0,
         };
-        let mut v = self.diffuse.map(f64::from);
+        let cos_dphi = {
+            let (xi, xo) = (wi[0].hypot(wi[1]), wo[0].hypot(wo[1]));
+            if xi > 0.0 && xo > 0.0 {
+                (wi[0] * wo[0] + wi[1] * wo[1]) / (xi * xo)
+            } else {
+                1.0
+            }
+        };
+        let mut v = self.diffuse_term(a.theta_i, a.theta_o, cos_dphi);
         self.terms_with_cosines(&a, wi[2].min(1.0), wo[2].min(1.0), |_, t| {
             for c in 0..3 {
                 v[c] += t[c];
@@ -410,6 +584,7 @@ mod tests {
         Model {
             layout,
             diffuse: [0.1, 0.2, 0.3],
+            diffuse_form: Default::default(),
             fresnel: [vec![1.0; n], vec![0.5; n], vec![0.25; n]],
             lobes: (0..lobes)
                 .map(|m| Lobe {
@@ -456,6 +631,7 @@ mod tests {
         let mut m = Model {
             layout,
             diffuse: [0.1; 3],
+            diffuse_form: Default::default(),
             fresnel: [vec![1.0; nf], vec![1.0; nf], vec![1.0; nf]],
             lobes: vec![Lobe {
                 s: [1.0; 3],

@@ -19,6 +19,13 @@
 //! of kind 0 are what earlier versions wrote, and isotropic models are still
 //! written so. No provenance: it is the form a renderer loads.
 //!
+//! The diffuse form (`diffuse_form` in JSON, absent in older files: Lambert)
+//! is the binary header's formerly reserved u16: 0 Lambert (no trailer, the
+//! files earlier versions wrote), 1 energy-coupled, 2 Oren-Nayar; forms 1
+//! and 2 append a trailer after the parameters: u32 count, then that many
+//! f32 (energy-coupled: E_R, E_G, E_B tables of n values each, then the three
+//! averages, count = 3 n + 3; Oren-Nayar: sigma, count = 1).
+//!
 //! Both forms hold the model's f32 parameters exactly, so writing and
 //! reading gives back the same model bit for bit.
 //!
@@ -30,7 +37,7 @@
 
 use crate::grid::{Axis, Grid, PhiAxis};
 use crate::metrics::Metrics;
-use crate::model::{Layout, Model, ModelError};
+use crate::model::{DiffuseForm, Layout, Model, ModelError};
 use byteorder::{ByteOrder, LittleEndian as LE};
 use npf_data_loaders::atomic::write_bytes_atomic;
 use npf_data_loaders::LoadError;
@@ -122,7 +129,7 @@ struct JsonFile {
 
 fn conventions() -> serde_json::Value {
     serde_json::json!({
-        "formula": "rho_C(wi,wo) = d_C + sum_m s_C^m D^m(theta_h) F_C(theta_d) G^m(theta_i) G^m(theta_o) / (cos theta_i cos theta_o)",
+        "formula": "rho_C(wi,wo) = d_C b_C(wi,wo) + sum_m s_C^m D^m(theta_h) F_C(theta_d) G^m(theta_i) G^m(theta_o) / (cos theta_i cos theta_o)",
         "units": "BRDF values in 1/sr (MERL's physical units); angles in radians",
         "frame": "local shading frame, normal +z; theta_h, theta_d: Rusinkiewicz half and difference angles",
         "channels": "R, G, B (MERL's linear RGB)",
@@ -134,6 +141,7 @@ fn conventions() -> serde_json::Value {
             "phi": "optional periodic azimuth axis of a 2-D table: n nodes at phi_k = 2 pi k / n, linear, wrapping; the table is row-major theta x phi; D reads (theta_h, phi_h), G (theta, phi) of each direction, F (theta_d, phi_d)"
         },
         "gauge": "max of G over constrained control points = 1; 2 pi * integral over theta_h <= 60 deg of D cos sin = 1; F_C(0) = 1",
+        "diffuse_form": "b_C: lambert 1; energy-coupled (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - average_C), E_C linear on uniform theta nodes over [0, pi/2]; oren-nayar A + B max(0, cos(phi_i - phi_o)) sin(max theta) tan(min theta), A = 1 - sigma^2 / (2 (sigma^2 + 0.33)), B = 0.45 sigma^2 / (sigma^2 + 0.09); absent: lambert",
         "below_horizon": "the BRDF is 0 when cos theta_i <= 0 or cos theta_o <= 0"
     })
 }
@@ -289,7 +297,43 @@ pub fn to_binary(model: &Model) -> Vec<u8> {
     }
     LE::write_u32(&mut out[header - 4..header], params.len() as u32);
     LE::write_f32_into(&params, &mut out[header..]);
+    let (code, extra): (u16, Vec<f32>) = match &model.diffuse_form {
+        DiffuseForm::Lambert => (0, Vec::new()),
+        DiffuseForm::EnergyCoupled { albedo, average } => {
+            (1, albedo.iter().flatten().chain(average).copied().collect())
+        }
+        DiffuseForm::OrenNayar { sigma } => (2, vec![*sigma]),
+    };
+    LE::write_u16(&mut out[6..8], code);
+    if code != 0 {
+        let at = out.len();
+        out.resize(at + 4 + 4 * extra.len(), 0);
+        LE::write_u32(&mut out[at..at + 4], extra.len() as u32);
+        LE::write_f32_into(&extra, &mut out[at + 4..]);
+    }
     out
+}
+
+/// The diffuse form of a binary file's code and trailer.
+fn diffuse_from(code: u16, extra: &[f32], path: &Path) -> Result<DiffuseForm, ModelFileError> {
+    match code {
+        1 if extra.len() >= 9 && extra.len() % 3 == 0 => {
+            let n = (extra.len() - 3) / 3;
+            Ok(DiffuseForm::EnergyCoupled {
+                albedo: std::array::from_fn(|c| extra[c * n..(c + 1) * n].to_vec()),
+                average: [extra[3 * n], extra[3 * n + 1], extra[3 * n + 2]],
+            })
+        }
+        2 if extra.len() == 1 => Ok(DiffuseForm::OrenNayar { sigma: extra[0] }),
+        1 | 2 => Err(invalid(
+            path,
+            format!(
+                "diffuse form {code} with a trailer of {} values",
+                extra.len()
+            ),
+        )),
+        _ => Err(invalid(path, format!("unknown diffuse form {code}"))),
+    }
 }
 
 /// Parse the binary form (`path` is for messages).
@@ -340,7 +384,27 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
     };
     check_size(path, layout, lobes)?;
     let count = LE::read_u32(&bytes[header - 4..header]) as usize;
-    let expected = header as u64 + 4 * count as u64;
+    let mut expected = header as u64 + 4 * count as u64;
+    let code = LE::read_u16(&bytes[6..8]);
+    let mut extra = Vec::new();
+    if code != 0 {
+        let at = expected as usize;
+        if bytes.len() < at + 4 {
+            return Err(invalid(
+                path,
+                "diffuse-form trailer missing (truncated file)",
+            ));
+        }
+        let n = LE::read_u32(&bytes[at..at + 4]) as usize;
+        if n > MAX_PARAMS {
+            return Err(invalid(path, format!("diffuse-form trailer of {n} values")));
+        }
+        expected += 4 + 4 * n as u64;
+        if bytes.len() as u64 == expected {
+            extra = vec![0f32; n];
+            LE::read_f32_into(&bytes[at + 4..], &mut extra);
+        }
+    }
     if bytes.len() as u64 != expected {
         return Err(invalid(
             path,
@@ -351,8 +415,13 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
         ));
     }
     let mut params = vec![0f32; count];
-    LE::read_f32_into(&bytes[header..], &mut params);
-    Model::from_params(layout, lobes, &params).map_err(|e| bad_model(path, e))
+    LE::read_f32_into(&bytes[header..header + 4 * count], &mut params);
+    let mut model = Model::from_params(layout, lobes, &params).map_err(|e| bad_model(path, e))?;
+    if code != 0 {
+        model.diffuse_form = diffuse_from(code, &extra, path)?;
+        model.validate().map_err(|e| bad_model(path, e))?;
+    }
+    Ok(model)
 }
 
 /// Refuse a layout beyond [`MAX_LOBES`] or [`MAX_PARAMS`].

@@ -272,6 +272,9 @@ pub struct FitSet {
     pub w: Vec<[f64; 3]>,
     /// 1 / (cos theta_i cos theta_o).
     pub inv_cc: Vec<f64>,
+    /// (theta_i, theta_o, cos(phi_i - phi_o)) per sample: what the diffuse
+    /// forms read.
+    pub dirs: Vec<[f32; 3]>,
     /// D stencils (tail folded).
     pub d_st: StencilTable,
     /// F stencils.
@@ -562,6 +565,13 @@ impl FitSet {
                     1.0 / (a[4].cos() * a[6].cos())
                 })
                 .collect(),
+            dirs: (0..n)
+                .into_par_iter()
+                .map(|j| {
+                    let a = angles(j);
+                    [a[4] as f32, a[6] as f32, (a[5] - a[7]).cos() as f32]
+                })
+                .collect(),
             d_st: StencilTable::from_fn(layout.d.stencil_width(), n, |j| {
                 let a = angles(j);
                 dg.extend(fold_tail(dg.theta.stencil(a[0]), d_free, |_| 1.0), a[1])
@@ -604,7 +614,7 @@ impl FitSet {
 
     /// Approximate heap size in bytes, for reports.
     pub fn heap_bytes(&self) -> usize {
-        let per_sample = 2 * 24 + 8;
+        let per_sample = 2 * 24 + 8 + 12;
         let st = self.d_st.heap_bytes()
             + self.f_st.heap_bytes()
             + self.gi_st.heap_bytes()

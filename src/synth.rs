@@ -62,6 +62,7 @@ pub fn known_factor_model(layout: Layout, alphas: &[f64]) -> Model {
     Model {
         layout,
         diffuse: [0.05, 0.08, 0.03],
+        diffuse_form: Default::default(),
         fresnel,
         lobes,
     }

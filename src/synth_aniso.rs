@@ -360,6 +360,7 @@ pub fn known_model() -> Model {
     Model {
         layout,
         diffuse: [0.04, 0.06, 0.08],
+        diffuse_form: Default::default(),
         fresnel,
         lobes,
     }

@@ -186,6 +186,7 @@ fn known_anisotropic_model() -> npf::model::Model {
     let m = Model {
         layout,
         diffuse: [0.05, 0.08, 0.1],
+        diffuse_form: Default::default(),
         fresnel,
         lobes,
     };

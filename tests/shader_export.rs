@@ -87,6 +87,7 @@ fn anisotropic_on(layout: Layout) -> Model {
     let m = Model {
         layout,
         diffuse: [0.04, 0.05, 0.06],
+        diffuse_form: Default::default(),
         fresnel: iso.fresnel.clone(),
         lobes,
     };

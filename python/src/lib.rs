@@ -540,6 +540,7 @@ impl PyModel {
         let model = CoreModel {
             layout: npf::model::Layout::isotropic(n),
             diffuse: d[0].map(|x| x as f32),
+            diffuse_form: Default::default(),
             fresnel: [f32s(&f[0]), f32s(&f[1]), f32s(&f[2])],
             lobes: s
                 .iter()

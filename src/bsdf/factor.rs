@@ -259,7 +259,7 @@ impl NpfBxdf {
                     });
             },
         );
-        std::iter::once(luminance(self.model.diffuse.map(f64::from)) * PI)
+        std::iter::once(luminance(self.model.diffuse_albedo(theta_o)))
             .chain(a)
             .collect()
     }

@@ -23,6 +23,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 mod anisotropic;
+mod compensated;
 mod factor;
 mod flat;
 mod ggx;
@@ -30,6 +31,7 @@ mod measured;
 mod utia;
 
 pub use anisotropic::{AnisoSampler, PHI_SUB, THETA_SUB};
+pub use compensated::Compensated;
 pub use factor::{
     NpfBxdf, COVERAGE_SHARE, GL4_W, GL4_X, NEGLIGIBLE_CELL, PHI_CELLS, SELECTION_FLOOR, SUBCELLS,
     VIEW_NODES,

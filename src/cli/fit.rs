@@ -5,7 +5,7 @@ use crate::fit::{fit, FitConfig, FitError, Fitted, ModelKind};
 use crate::modelfile::{self, ModelFile};
 use crate::samples::Weighting;
 use crate::selection::{self, Candidate, Scores, Target};
-use crate::solver::{GMethod, SweepReport, MAX_LOBES};
+use crate::solver::{DiffuseKind, GMethod, SweepReport, MAX_LOBES};
 use clap::Args;
 use npf_data_loaders::MeasuredSamples;
 use std::path::PathBuf;
@@ -63,6 +63,9 @@ pub struct FitFlags {
     /// Worker threads (0: all cores). Results are identical for any count.
     #[arg(long, default_value_t = defaults().threads)]
     pub threads: usize,
+    /// The diffuse term's form (factor model; see docs/fitting.md).
+    #[arg(long, value_enum, default_value_t = defaults().diffuse)]
+    pub diffuse: DiffuseKind,
 }
 
 impl FitFlags {
@@ -88,6 +91,7 @@ impl FitFlags {
             },
             accelerate: base.accelerate && !self.no_accelerate,
             threads: self.threads,
+            diffuse: self.diffuse,
         }
     }
 }

@@ -9,6 +9,8 @@
 pub mod albedo;
 /// The multiple-scattering lobe and the white-furnace check.
 pub mod compensation;
+/// A fitted model's specular albedo, for the energy-coupled diffuse form.
+pub mod coupled;
 /// Polynomial fits of E_avg(alpha).
 pub mod fit;
 /// GGX and Beckmann distributions and Smith terms in projected-area form.

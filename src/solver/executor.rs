@@ -25,6 +25,8 @@ pub enum Stage {
     SmoothG(usize),
     /// The (d, s) solve.
     DiffuseAndScales,
+    /// The diffuse form's refresh trial.
+    DiffuseForm,
     /// Canonical rescaling and a fresh recomputation of all caches.
     Gauge,
     /// The extrapolation trial (accepted or not).
@@ -177,6 +179,7 @@ impl<'a> Executor<'a> {
         ];
         let mut g_work = Vec::new();
         update_diffuse_and_scales(set, &mut st, &mask);
+        super::diffuse::start(set, &mut st, &mask, opts.diffuse);
         gauge(set, &mut st, &measure);
         let initial = st.objective(set);
         let mut prev = initial;
@@ -223,6 +226,10 @@ impl<'a> Executor<'a> {
             }
             update_diffuse_and_scales(set, &mut st, &mask);
             rec.mark(Stage::DiffuseAndScales, set, &st);
+            if opts.diffuse != super::DiffuseKind::Lambert {
+                super::diffuse::refresh(set, &mut st, &mask, opts.diffuse);
+                rec.mark(Stage::DiffuseForm, set, &st);
+            }
             if sweep % 10 == 0 {
                 gauge(set, &mut st, &measure);
             } else {
@@ -277,7 +284,7 @@ impl<'a> Executor<'a> {
             }
         }
         Ok(FitResult {
-            model: st.factors.to_model(),
+            model: st.to_model(),
             objective: prev,
             factors: st.factors,
             initial_objective: initial,

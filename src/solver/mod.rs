@@ -13,6 +13,7 @@
 //! parallel share no sample, so results are bit-for-bit identical for any
 //! number of threads.
 
+pub mod diffuse;
 pub mod executor;
 pub mod g_update;
 pub mod gauge;
@@ -40,6 +41,21 @@ pub enum GMethod {
     Golden,
     /// G stays at its initial Smith shape.
     Fixed,
+}
+
+/// Which diffuse form a fit uses ([`crate::model::DiffuseForm`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum DiffuseKind {
+    /// Constant d_C (the paper's).
+    #[default]
+    Lambert,
+    /// d_C (1 - E(theta_i)) (1 - E(theta_o)) / (1 - E_avg), E from the
+    /// fitted specular lobes, refreshed between sweeps.
+    EnergyCoupled,
+    /// Oren-Nayar's rough diffuse, sigma refreshed between sweeps.
+    OrenNayar,
 }
 
 /// Options of one AWLS fit.
@@ -76,6 +92,11 @@ pub struct FitOptions {
     /// with lobe C lighting channel C only.
     #[serde(default = "all_channels")]
     pub channel_mask: [[bool; 3]; MAX_LOBES],
+    /// The diffuse form: its factor is held fixed within a sweep and
+    /// refreshed after the sweep's d, s solve, each refresh kept only when
+    /// the objective falls.
+    #[serde(default)]
+    pub diffuse: DiffuseKind,
 }
 
 fn all_channels() -> [[bool; 3]; MAX_LOBES] {
@@ -101,6 +122,7 @@ impl Default for FitOptions {
             trace_stages: false,
             d_monotone_from_deg: Some(60.0),
             channel_mask: all_channels(),
+            diffuse: DiffuseKind::Lambert,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Working factors (f64) and the per-sample caches the updates share.
 
 use super::{chunked_sum, MAX_LOBES};
-use crate::model::{Layout, Lobe, Model};
+use crate::model::{DiffuseForm, Layout, Lobe, Model};
 use crate::samples::FitSet;
 use rayon::prelude::*;
 
@@ -34,6 +34,7 @@ impl Factors {
         Model {
             layout: self.layout,
             diffuse: self.diffuse.map(|x| x as f32),
+            diffuse_form: Default::default(),
             fresnel: [v(&self.f[0]), v(&self.f[1]), v(&self.f[2])],
             lobes: (0..self.lobes())
                 .map(|m| Lobe {
@@ -93,6 +94,16 @@ pub struct State {
     pub factors: Factors,
     /// One cache per sample.
     pub cache: Vec<Cache>,
+    /// The diffuse form the residuals use.
+    pub diffuse_form: DiffuseForm,
+    /// Its factor b_C per sample (`None`: Lambertian, b = 1).
+    pub basis: Option<Vec<[f64; 3]>>,
+}
+
+/// b_C of sample j (1 without a basis).
+#[inline]
+pub(crate) fn basis_at(basis: &Option<Vec<[f64; 3]>>, j: usize, ch: usize) -> f64 {
+    basis.as_ref().map_or(1.0, |b| b[j][ch])
 }
 
 impl State {
@@ -101,6 +112,8 @@ impl State {
         let mut s = State {
             factors,
             cache: vec![Cache::default(); set.len()],
+            diffuse_form: DiffuseForm::Lambert,
+            basis: None,
         };
         s.refresh(set);
         s
@@ -120,6 +133,7 @@ impl State {
     fn refresh_n<const WD: usize, const WF: usize, const WG: usize>(&mut self, set: &FitSet) {
         use crate::grid::StencilTable as T;
         let f = &self.factors;
+        let basis = &self.basis;
         let lobes = f.lobes();
         self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
             let (d, gi, go) = (
@@ -137,7 +151,7 @@ impl State {
                 c.fv[ch] = T::apply_row(fr, &f.f[ch]);
             }
             for ch in 0..3 {
-                let mut v = f.diffuse[ch];
+                let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
                 for m in 0..lobes {
                     v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
                 }
@@ -148,6 +162,7 @@ impl State {
 
     fn refresh_any(&mut self, set: &FitSet) {
         let f = &self.factors;
+        let basis = &self.basis;
         let lobes = f.lobes();
         self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
             for m in 0..lobes {
@@ -159,13 +174,35 @@ impl State {
                 c.fv[ch] = set.f_st.apply(j, &f.f[ch]);
             }
             for ch in 0..3 {
-                let mut v = f.diffuse[ch];
+                let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
                 for m in 0..lobes {
                     v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
                 }
                 c.r[ch] = v - set.y[j][ch];
             }
         });
+    }
+
+    /// The model with the state's diffuse form.
+    pub fn to_model(&self) -> Model {
+        let mut m = self.factors.to_model();
+        m.diffuse_form = self.diffuse_form.clone();
+        m
+    }
+
+    /// Use `form` for the diffuse term: fills the per-sample basis (the
+    /// caller recomputes the residuals).
+    pub fn set_diffuse_form(&mut self, set: &FitSet, form: DiffuseForm) {
+        self.basis = match form {
+            DiffuseForm::Lambert => None,
+            _ => Some(
+                set.dirs
+                    .par_iter()
+                    .map(|d| form.factor(d[0] as f64, d[1] as f64, d[2] as f64))
+                    .collect(),
+            ),
+        };
+        self.diffuse_form = form;
     }
 
     /// The objective sum_j sum_C w (model - data)^2, including the constant

@@ -8,7 +8,7 @@
 //! channels that share the entry). Clamping the new value at 0 is then the
 //! exact constrained minimum.
 
-use super::state::{Cache, State};
+use super::state::{basis_at, Cache, State};
 use super::{chunked_sum, MAX_LOBES};
 use crate::nnls::nnls_enumerate;
 use crate::samples::{FitSet, Incidence};
@@ -229,17 +229,18 @@ pub(crate) fn update_diffuse_and_scales(
 ) {
     let lobes = st.factors.lobes();
     let k = lobes + 1;
-    // Gram matrix and right-hand side per channel: basis b_0 = 1, b_m = F D G G/(cc).
+    // Gram matrix and right-hand side per channel: basis b_0 = the diffuse factor, b_m = F D G G/(cc).
     const MAXK: usize = MAX_LOBES + 1;
     const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
     let cache = &st.cache;
+    let basis = &st.basis;
     let sums: [f64; SIZE] = chunked_sum(set.len(), |range| {
         let mut acc = [0.0; SIZE];
         for j in range {
             let c = &cache[j];
             for ch in 0..3 {
                 let mut b = [0.0; MAXK];
-                b[0] = 1.0;
+                b[0] = basis_at(basis, j, ch);
                 for m in 0..lobes {
                     b[m + 1] = c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
                 }
@@ -290,10 +291,18 @@ pub(crate) fn update_diffuse_and_scales(
             }
         }
     }
+    recompute_residuals(set, st);
+}
+
+/// r = model - data of every sample from the factors and the cached factor
+/// values (after d, s or the diffuse basis changed).
+pub(crate) fn recompute_residuals(set: &FitSet, st: &mut State) {
+    let lobes = st.factors.lobes();
     let f = &st.factors;
+    let basis = &st.basis;
     st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
         for ch in 0..3 {
-            let mut v = f.diffuse[ch];
+            let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
             for m in 0..lobes {
                 v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
             }

@@ -43,6 +43,9 @@ pub enum ShaderError {
     /// The identifier prefix is not a valid GLSL/C identifier.
     #[error("bad shader prefix {0:?}: use 1 to 32 ASCII letters, digits or '_', starting with a letter, no \"__\" and not \"gl_\"")]
     BadPrefix(String),
+    /// The model's diffuse form has no shader code yet.
+    #[error("the shader exports support the Lambertian diffuse form only, this model's is {0} (refit with --diffuse lambert, or export .bsdf, which tabulates Model::eval)")]
+    DiffuseForm(&'static str),
 }
 
 /// Options shared by the three exports.
@@ -83,6 +86,9 @@ impl ShaderOptions {
 fn prepare(model: &Model, options: &ShaderOptions) -> Result<SamplerTables, ShaderError> {
     options.validate()?;
     model.validate()?;
+    if model.diffuse_form != crate::model::DiffuseForm::Lambert {
+        return Err(ShaderError::DiffuseForm(model.diffuse_form.name()));
+    }
     Ok(SamplerTables::new(model))
 }
 
