@@ -7,26 +7,14 @@ use npf::synth::GgxLambert;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+use common::{npf, s, stderr};
+
 const BRDF: GgxLambert = GgxLambert {
     kd: [0.1, 0.1, 0.1],
     f0: [0.9, 0.7, 0.5],
     alpha: 0.3,
 };
-
-fn npf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_npf"))
-        .args(args)
-        .output()
-        .expect("run npf")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A failed run: non-zero exit, a message containing `needle`, no panic.
 fn assert_fails(o: &Output, needle: &str) {

@@ -5,22 +5,10 @@
 use npf::synth::GgxLambert;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn npf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_npf"))
-        .args(args)
-        .output()
-        .expect("run npf")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{npf, s, stderr};
 
 /// Every file of a folder with its bytes (to show a folder is untouched).
 fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {

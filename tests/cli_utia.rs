@@ -5,12 +5,8 @@ use npf::synth_aniso::catalogue;
 use std::path::Path;
 use std::process::{Command, Output};
 
-fn npf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_npf"))
-        .args(args)
-        .output()
-        .expect("run npf")
-}
+mod common;
+use common::npf;
 
 fn text(o: &Output) -> String {
     format!(

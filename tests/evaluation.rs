@@ -15,8 +15,10 @@ use npf::reconstruct::to_merl;
 use npf::render::{psnr, render, RenderOptions};
 use npf::samples::SampleOptions;
 use npf::synth::{known_factor_model, GgxLambert};
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod common;
+use common::{npf, s};
 
 const BRDF: GgxLambert = GgxLambert {
     kd: [0.3, 0.2, 0.1],
@@ -201,17 +203,6 @@ fn ggx_fit_recovers_its_parameters() {
     // The tabulated (stored) form is the same BRDF up to interpolation.
     let m = compare_model(&samples, 85.0, &p.to_model(Layout::default()));
     assert!(m.rel_cos_rmse < 5e-3, "{m:?}");
-}
-
-fn npf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_npf"))
-        .args(args)
-        .output()
-        .expect("run npf")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn ok(o: &Output) -> String {

@@ -15,6 +15,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+use common::{s, stderr};
+
 const BRDF: GgxLambert = GgxLambert {
     kd: [0.1, 0.1, 0.1],
     f0: [0.9, 0.7, 0.5],
@@ -45,14 +48,6 @@ fn npf_within(args: &[&str], limit: Duration) -> Output {
 /// A refusal is immediate: 20 s is generous on a loaded 2-core machine.
 fn npf(args: &[&str]) -> Output {
     npf_within(args, Duration::from_secs(20))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 fn assert_fails(o: &Output, needle: &str) {
@@ -269,9 +264,10 @@ fn special_and_endless_inputs_are_refused_without_blocking() {
         ),
         (vec!["info", s(&fifo_model)], "is a FIFO"),
         (vec!["fit", s(&fifo), "-o", s(&out)], "is a FIFO"),
+        // A directory is a folder fit (tests/cli_folder.rs); an empty one is refused.
         (
             vec!["fit", s(&folder), "-o", s(&out)],
-            "is a directory, not a MERL table",
+            "no measured tables (.binary or .bin files) in the folder",
         ),
         (vec!["info", s(&folder)], "is a directory"),
         (

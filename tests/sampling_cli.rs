@@ -4,14 +4,10 @@ use npf::model::Layout;
 use npf::modelfile::{self, ModelFile};
 use npf::synth::known_factor_model;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn npf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_npf"))
-        .args(args)
-        .output()
-        .expect("run npf")
-}
+mod common;
+use common::{npf, stderr};
 
 fn model_file(dir: &Path) -> PathBuf {
     let path = dir.join("glossy.json");
@@ -21,10 +17,6 @@ fn model_file(dir: &Path) -> PathBuf {
     };
     modelfile::write(&path, &file, false).unwrap();
     path
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 #[test]

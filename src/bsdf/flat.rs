@@ -103,11 +103,14 @@ pub struct FlatEval {
 }
 
 impl FlatEval {
-    /// The flat copy of a (valid) model, or `None` when it is anisotropic
-    /// or has more than [`FLAT_LOBES`] lobes.
+    /// The flat copy of a (valid) model, or `None` when it is anisotropic,
+    /// has more than [`FLAT_LOBES`] lobes or a non-Lambertian diffuse form.
     pub fn new(model: &Model) -> Option<Self> {
         let l = &model.layout;
-        if !l.is_isotropic() || model.lobes.is_empty() || model.lobes.len() > FLAT_LOBES {
+        // Only the Lambertian diffuse term is flattened; other forms go through Model::eval.
+        let lambert = matches!(model.diffuse_form, crate::model::DiffuseForm::Lambert);
+        if !lambert || !l.is_isotropic() || model.lobes.is_empty() || model.lobes.len() > FLAT_LOBES
+        {
             return None;
         }
         if l.g.theta.len() < 2 {
