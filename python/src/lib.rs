@@ -1009,6 +1009,8 @@ fn fit(
         d_monotone_from: d_monotone_from.or(d.d_monotone_from),
         accelerate: accelerate.unwrap_or(d.accelerate),
         threads,
+        // Lambertian, the default (`npf fit --diffuse` chooses others).
+        diffuse: d.diffuse,
     };
     for (name, v) in [
         ("epsilon", config.epsilon),
