@@ -7,7 +7,7 @@ use super::state::{set_residual, squared_error, Cache, Factors, State};
 use super::updates::{
     solve_diffuse_and_scales, update_d, update_diffuse_and_scales, update_f, Scratch,
 };
-use super::{chunked_sum_mut, FitOptions, SolverError, MAX_LOBES};
+use super::{chunked_sum, chunked_sum_mut, FitOptions, SolverError, MAX_LOBES};
 use crate::grid::Grid;
 use crate::model::Model;
 use crate::samples::FitSet;
@@ -240,9 +240,17 @@ impl<'a> Executor<'a> {
                 super::diffuse::refresh(set, &mut st, &mask, opts.diffuse);
                 rec.mark(Stage::DiffuseForm, set, &st);
             }
-            let mut e = if fused {
+            // An extrapolation trial ends with a fresh refresh of the caches
+            // (of the trial or of the current factors), so before one the
+            // caches need not be updated, only the objective computed.
+            let trial_follows = opts.accelerate && prev_factors.is_some();
+            let mut fresh = false;
+            let mut e = if fused && trial_follows {
+                residuals_objective(set, &mut st, &measure)
+            } else if fused {
                 residuals_rescale_objective(set, &mut st, &measure)
             } else if sweep % 10 == 0 {
+                fresh = true;
                 gauge_objective(set, &mut st, &measure)
             } else {
                 gauge_rescale(set, &mut st, &measure);
@@ -252,17 +260,24 @@ impl<'a> Executor<'a> {
             let mut extrapolated = false;
             if opts.accelerate {
                 if let Some(old) = &prev_factors {
-                    let current = st.factors.clone();
-                    st.factors = extrapolate(&current, old, beta, monotone_from);
-                    apply_mask(&mut st.factors, &mask);
-                    let trial = gauge_objective(set, &mut st, &measure);
+                    // The trial point's objective is computed without
+                    // touching the caches, so a refused trial needs no
+                    // refresh when they are fresh already.
+                    let mut x = extrapolate(&st.factors, old, beta, monotone_from);
+                    apply_mask(&mut x, &mask);
+                    fill_unconstrained(&mut x, set);
+                    normalise(&mut x, set, &measure);
+                    let trial = st.objective_of(set, &x);
                     if trial < e {
+                        st.factors = x;
+                        st.refresh(set);
                         e = trial;
                         extrapolated = true;
                         beta = (beta * 1.5).min(8.0);
                     } else {
-                        st.factors = current;
-                        st.refresh(set);
+                        if !fresh {
+                            st.refresh(set);
+                        }
                         beta = (beta * 0.5).max(0.5);
                     }
                     rec.mark(Stage::Extrapolate, set, &st);
@@ -334,6 +349,26 @@ fn gauge_objective(set: &FitSet, st: &mut State, measure: &[f64]) -> f64 {
     fill_unconstrained(&mut st.factors, set);
     normalise(&mut st.factors, set, measure);
     st.refresh_objective(set)
+}
+
+/// The objective `residuals_rescale_objective` returns, and the same gauge
+/// of the factors, leaving the caches stale (for a caller that refreshes
+/// them next).
+fn residuals_objective(set: &FitSet, st: &mut State, measure: &[f64]) -> f64 {
+    let solved = st.factors.clone();
+    fill_unconstrained(&mut st.factors, set);
+    normalise(&mut st.factors, set, measure);
+    let (cache, basis) = (&st.cache, &st.basis);
+    let [e] = chunked_sum(set.len(), |range| {
+        let mut e = 0.0;
+        for j in range {
+            let mut c = cache[j];
+            set_residual(set, &solved, basis, j, &mut c);
+            e += squared_error(&c, &set.w[j]);
+        }
+        [e]
+    });
+    e + set.objective_offset
 }
 
 /// `recompute_residuals` after `solve_diffuse_and_scales`, then

@@ -125,6 +125,57 @@ pub(crate) fn set_residual(
     }
 }
 
+/// Fills sample j's cache from the factors (factor values, then residuals);
+/// generic, so each use is monomorphised and inlined.
+trait Fill: Fn(&FitSet, &Factors, &Option<Vec<[f64; 3]>>, usize, &mut Cache) + Sync {}
+impl<T: Fn(&FitSet, &Factors, &Option<Vec<[f64; 3]>>, usize, &mut Cache) + Sync> Fill for T {}
+
+/// The stencil widths the refresh dispatches on.
+fn widths(set: &FitSet) -> (usize, usize, usize) {
+    (set.d_st.width, set.f_st.width, set.gi_st.width)
+}
+
+/// [`Fill`] for stencil widths known at compile time (unrolled loops).
+#[inline(always)]
+fn fill_n<const WD: usize, const WF: usize, const WG: usize>(
+    set: &FitSet,
+    f: &Factors,
+    basis: &Option<Vec<[f64; 3]>>,
+    j: usize,
+    c: &mut Cache,
+) {
+    use crate::grid::StencilTable as T;
+    let (d, gi, go) = (
+        set.d_st.row::<WD>(j),
+        set.gi_st.row::<WG>(j),
+        set.go_st.row::<WG>(j),
+    );
+    for m in 0..f.lobes() {
+        c.dv[m] = T::apply_row(d, &f.d[m]);
+        c.gi[m] = T::apply_row(gi, &f.g[m]);
+        c.go[m] = T::apply_row(go, &f.g[m]);
+    }
+    let fr = set.f_st.row::<WF>(j);
+    for ch in 0..3 {
+        c.fv[ch] = T::apply_row(fr, &f.f[ch]);
+    }
+    set_residual(set, f, basis, j, c);
+}
+
+/// [`Fill`] for any stencil widths.
+#[inline(always)]
+fn fill_any(set: &FitSet, f: &Factors, basis: &Option<Vec<[f64; 3]>>, j: usize, c: &mut Cache) {
+    for m in 0..f.lobes() {
+        c.dv[m] = set.d_st.apply(j, &f.d[m]);
+        c.gi[m] = set.gi_st.apply(j, &f.g[m]);
+        c.go[m] = set.go_st.apply(j, &f.g[m]);
+    }
+    for ch in 0..3 {
+        c.fv[ch] = set.f_st.apply(j, &f.f[ch]);
+    }
+    set_residual(set, f, basis, j, c);
+}
+
 /// One sample's term of the objective: sum_C w_C r_C^2.
 #[inline]
 pub(crate) fn squared_error(c: &Cache, w: &[f64; 3]) -> f64 {
@@ -155,71 +206,51 @@ impl State {
         self.refresh_with::<true>(set) + set.objective_offset
     }
 
+    /// The objective of factors `f` with this state's diffuse basis, from
+    /// freshly computed factor values, without touching the caches:
+    /// bit-identical to setting `f`, [`State::refresh`] and
+    /// [`State::objective`].
+    pub(crate) fn objective_of(&self, set: &FitSet, f: &Factors) -> f64 {
+        match widths(set) {
+            (2, 2, 4) => self.objective_by(set, f, fill_n::<2, 2, 4>),
+            (4, 2, 8) => self.objective_by(set, f, fill_n::<4, 2, 8>),
+            _ => self.objective_by(set, f, fill_any),
+        }
+    }
+
+    fn objective_by(&self, set: &FitSet, f: &Factors, fill: impl Fill) -> f64 {
+        let [e] = chunked_sum(set.len(), |range| {
+            let mut e = 0.0;
+            for j in range {
+                let mut c = Cache::default();
+                fill(set, f, &self.basis, j, &mut c);
+                e += squared_error(&c, &set.w[j]);
+            }
+            [e]
+        });
+        e + set.objective_offset
+    }
+
     /// The refresh; with `OBJ`, also the weighted squared residuals' sum
     /// (without the offset), else 0.
     fn refresh_with<const OBJ: bool>(&mut self, set: &FitSet) -> f64 {
         // Dispatch on the stencil widths once, so the per-sample loops are
         // unrolled for the built-in layouts (same arithmetic either way).
-        match (set.d_st.width, set.f_st.width, set.gi_st.width) {
-            (2, 2, 4) => self.refresh_n::<2, 2, 4, OBJ>(set),
-            (4, 2, 8) => self.refresh_n::<4, 2, 8, OBJ>(set),
-            _ => self.refresh_any::<OBJ>(set),
+        match widths(set) {
+            (2, 2, 4) => self.refresh_by::<OBJ>(set, fill_n::<2, 2, 4>),
+            (4, 2, 8) => self.refresh_by::<OBJ>(set, fill_n::<4, 2, 8>),
+            _ => self.refresh_by::<OBJ>(set, fill_any),
         }
     }
 
-    fn refresh_n<const WD: usize, const WF: usize, const WG: usize, const OBJ: bool>(
-        &mut self,
-        set: &FitSet,
-    ) -> f64 {
-        use crate::grid::StencilTable as T;
+    fn refresh_by<const OBJ: bool>(&mut self, set: &FitSet, fill: impl Fill) -> f64 {
         let f = &self.factors;
         let basis = &self.basis;
-        let lobes = f.lobes();
         let [e] = chunked_sum_mut(&mut self.cache, |start, chunk| {
             let mut e = 0.0;
             for (i, c) in chunk.iter_mut().enumerate() {
                 let j = start + i;
-                let (d, gi, go) = (
-                    set.d_st.row::<WD>(j),
-                    set.gi_st.row::<WG>(j),
-                    set.go_st.row::<WG>(j),
-                );
-                for m in 0..lobes {
-                    c.dv[m] = T::apply_row(d, &f.d[m]);
-                    c.gi[m] = T::apply_row(gi, &f.g[m]);
-                    c.go[m] = T::apply_row(go, &f.g[m]);
-                }
-                let fr = set.f_st.row::<WF>(j);
-                for ch in 0..3 {
-                    c.fv[ch] = T::apply_row(fr, &f.f[ch]);
-                }
-                set_residual(set, f, basis, j, c);
-                if OBJ {
-                    e += squared_error(c, &set.w[j]);
-                }
-            }
-            [e]
-        });
-        e
-    }
-
-    fn refresh_any<const OBJ: bool>(&mut self, set: &FitSet) -> f64 {
-        let f = &self.factors;
-        let basis = &self.basis;
-        let lobes = f.lobes();
-        let [e] = chunked_sum_mut(&mut self.cache, |start, chunk| {
-            let mut e = 0.0;
-            for (i, c) in chunk.iter_mut().enumerate() {
-                let j = start + i;
-                for m in 0..lobes {
-                    c.dv[m] = set.d_st.apply(j, &f.d[m]);
-                    c.gi[m] = set.gi_st.apply(j, &f.g[m]);
-                    c.go[m] = set.go_st.apply(j, &f.g[m]);
-                }
-                for ch in 0..3 {
-                    c.fv[ch] = set.f_st.apply(j, &f.f[ch]);
-                }
-                set_residual(set, f, basis, j, c);
+                fill(set, f, basis, j, c);
                 if OBJ {
                     e += squared_error(c, &set.w[j]);
                 }
