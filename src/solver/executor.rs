@@ -240,17 +240,15 @@ impl<'a> Executor<'a> {
                 super::diffuse::refresh(set, &mut st, &mask, opts.diffuse);
                 rec.mark(Stage::DiffuseForm, set, &st);
             }
-            // An extrapolation trial ends with a fresh refresh of the caches
-            // (of the trial or of the current factors), so before one the
-            // caches need not be updated, only the objective computed.
+            // An extrapolation trial refreshes every cache (to the trial's
+            // factors, then back to the current ones if refused), so before
+            // one the caches need not be updated, only the objective computed.
             let trial_follows = opts.accelerate && prev_factors.is_some();
-            let mut fresh = false;
             let mut e = if fused && trial_follows {
                 residuals_objective(set, &mut st, &measure)
             } else if fused {
                 residuals_rescale_objective(set, &mut st, &measure)
             } else if sweep % 10 == 0 {
-                fresh = true;
                 gauge_objective(set, &mut st, &measure)
             } else {
                 gauge_rescale(set, &mut st, &measure);
@@ -260,24 +258,17 @@ impl<'a> Executor<'a> {
             let mut extrapolated = false;
             if opts.accelerate {
                 if let Some(old) = &prev_factors {
-                    // The trial point's objective is computed without
-                    // touching the caches, so a refused trial needs no
-                    // refresh when they are fresh already.
-                    let mut x = extrapolate(&st.factors, old, beta, monotone_from);
-                    apply_mask(&mut x, &mask);
-                    fill_unconstrained(&mut x, set);
-                    normalise(&mut x, set, &measure);
-                    let trial = st.objective_of(set, &x);
+                    let current = st.factors.clone();
+                    st.factors = extrapolate(&current, old, beta, monotone_from);
+                    apply_mask(&mut st.factors, &mask);
+                    let trial = gauge_objective(set, &mut st, &measure);
                     if trial < e {
-                        st.factors = x;
-                        st.refresh(set);
                         e = trial;
                         extrapolated = true;
                         beta = (beta * 1.5).min(8.0);
                     } else {
-                        if !fresh {
-                            st.refresh(set);
-                        }
+                        st.factors = current;
+                        st.refresh(set);
                         beta = (beta * 0.5).max(0.5);
                     }
                     rec.mark(Stage::Extrapolate, set, &st);

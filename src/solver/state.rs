@@ -206,31 +206,6 @@ impl State {
         self.refresh_with::<true>(set) + set.objective_offset
     }
 
-    /// The objective of factors `f` with this state's diffuse basis, from
-    /// freshly computed factor values, without touching the caches:
-    /// bit-identical to setting `f`, [`State::refresh`] and
-    /// [`State::objective`].
-    pub(crate) fn objective_of(&self, set: &FitSet, f: &Factors) -> f64 {
-        match widths(set) {
-            (2, 2, 4) => self.objective_by(set, f, fill_n::<2, 2, 4>),
-            (4, 2, 8) => self.objective_by(set, f, fill_n::<4, 2, 8>),
-            _ => self.objective_by(set, f, fill_any),
-        }
-    }
-
-    fn objective_by(&self, set: &FitSet, f: &Factors, fill: impl Fill) -> f64 {
-        let [e] = chunked_sum(set.len(), |range| {
-            let mut e = 0.0;
-            for j in range {
-                let mut c = Cache::default();
-                fill(set, f, &self.basis, j, &mut c);
-                e += squared_error(&c, &set.w[j]);
-            }
-            [e]
-        });
-        e + set.objective_offset
-    }
-
     /// The refresh; with `OBJ`, also the weighted squared residuals' sum
     /// (without the offset), else 0.
     fn refresh_with<const OBJ: bool>(&mut self, set: &FitSet) -> f64 {
