@@ -1,11 +1,13 @@
 //! The loop around the sweep, with observers (argmin's executor split).
 
 use super::g_update::{update_g, GPassStats};
-use super::gauge::{d_measure, fill_unconstrained, normalise};
+use super::gauge::{d_measure, fill_unconstrained, normalise, Scales};
 use super::init::initial_factors;
-use super::state::{Factors, State};
-use super::updates::{update_d, update_diffuse_and_scales, update_f, Scratch};
-use super::{FitOptions, SolverError, MAX_LOBES};
+use super::state::{set_residual, squared_error, Cache, Factors, State};
+use super::updates::{
+    solve_diffuse_and_scales, update_d, update_diffuse_and_scales, update_f, Scratch,
+};
+use super::{chunked_sum, chunked_sum_mut, FitOptions, SolverError, MAX_LOBES};
 use crate::grid::Grid;
 use crate::model::Model;
 use crate::samples::FitSet;
@@ -180,8 +182,7 @@ impl<'a> Executor<'a> {
         let mut g_work = Vec::new();
         update_diffuse_and_scales(set, &mut st, &mask);
         super::diffuse::start(set, &mut st, &mask, opts.diffuse);
-        gauge(set, &mut st, &measure);
-        let initial = st.objective(set);
+        let initial = gauge_objective(set, &mut st, &measure);
         let mut prev = initial;
         let mut prev_factors: Option<Factors> = None;
         let mut beta = 1.0;
@@ -224,18 +225,35 @@ impl<'a> Executor<'a> {
                     rec.mark(Stage::SmoothG(m), set, &st);
                 }
             }
-            update_diffuse_and_scales(set, &mut st, &mask);
+            // Between the d, s solve and the rescaling gauge nothing reads
+            // the residuals, so (untraced, Lambertian) their recomputation,
+            // the rescaling and the objective share one pass.
+            let lambert = opts.diffuse == super::DiffuseKind::Lambert;
+            let fused = lambert && sweep % 10 != 0 && !opts.trace_stages;
+            if fused {
+                solve_diffuse_and_scales(set, &mut st, &mask);
+            } else {
+                update_diffuse_and_scales(set, &mut st, &mask);
+            }
             rec.mark(Stage::DiffuseAndScales, set, &st);
-            if opts.diffuse != super::DiffuseKind::Lambert {
+            if !lambert {
                 super::diffuse::refresh(set, &mut st, &mask, opts.diffuse);
                 rec.mark(Stage::DiffuseForm, set, &st);
             }
-            if sweep % 10 == 0 {
-                gauge(set, &mut st, &measure);
+            // An extrapolation trial refreshes every cache (to the trial's
+            // factors, then back to the current ones if refused), so before
+            // one the caches need not be updated, only the objective computed.
+            let trial_follows = opts.accelerate && prev_factors.is_some();
+            let mut e = if fused && trial_follows {
+                residuals_objective(set, &mut st, &measure)
+            } else if fused {
+                residuals_rescale_objective(set, &mut st, &measure)
+            } else if sweep % 10 == 0 {
+                gauge_objective(set, &mut st, &measure)
             } else {
                 gauge_rescale(set, &mut st, &measure);
-            }
-            let mut e = st.objective(set);
+                st.objective(set)
+            };
             rec.mark(Stage::Gauge, set, &st);
             let mut extrapolated = false;
             if opts.accelerate {
@@ -243,8 +261,7 @@ impl<'a> Executor<'a> {
                     let current = st.factors.clone();
                     st.factors = extrapolate(&current, old, beta, monotone_from);
                     apply_mask(&mut st.factors, &mask);
-                    gauge(set, &mut st, &measure);
-                    let trial = st.objective(set);
+                    let trial = gauge_objective(set, &mut st, &measure);
                     if trial < e {
                         e = trial;
                         extrapolated = true;
@@ -302,22 +319,70 @@ fn gauge_rescale(set: &FitSet, st: &mut State, measure: &[f64]) {
     fill_unconstrained(&mut st.factors, set);
     let k = normalise(&mut st.factors, set, measure);
     let lobes = st.factors.lobes();
-    st.cache.par_iter_mut().for_each(|c| {
-        for m in 0..lobes {
-            c.dv[m] *= k.d[m];
-            c.gi[m] *= k.g[m];
-            c.go[m] *= k.g[m];
-        }
-        for ch in 0..3 {
-            c.fv[ch] *= k.f[ch];
-        }
-    });
+    st.cache.par_iter_mut().for_each(|c| rescale(c, &k, lobes));
 }
 
-fn gauge(set: &FitSet, st: &mut State, measure: &[f64]) {
+/// A cache's factor values multiplied by the gauge's factors.
+#[inline]
+fn rescale(c: &mut Cache, k: &Scales, lobes: usize) {
+    for m in 0..lobes {
+        c.dv[m] *= k.d[m];
+        c.gi[m] *= k.g[m];
+        c.go[m] *= k.g[m];
+    }
+    for ch in 0..3 {
+        c.fv[ch] *= k.f[ch];
+    }
+}
+
+/// The full gauge (canonical form and fresh caches), returning the objective.
+fn gauge_objective(set: &FitSet, st: &mut State, measure: &[f64]) -> f64 {
     fill_unconstrained(&mut st.factors, set);
     normalise(&mut st.factors, set, measure);
-    st.refresh(set);
+    st.refresh_objective(set)
+}
+
+/// The objective `residuals_rescale_objective` returns, and the same gauge
+/// of the factors, leaving the caches stale (for a caller that refreshes
+/// them next).
+fn residuals_objective(set: &FitSet, st: &mut State, measure: &[f64]) -> f64 {
+    let solved = st.factors.clone();
+    fill_unconstrained(&mut st.factors, set);
+    normalise(&mut st.factors, set, measure);
+    let (cache, basis) = (&st.cache, &st.basis);
+    let [e] = chunked_sum(set.len(), |range| {
+        let mut e = 0.0;
+        for j in range {
+            let mut c = cache[j];
+            set_residual(set, &solved, basis, j, &mut c);
+            e += squared_error(&c, &set.w[j]);
+        }
+        [e]
+    });
+    e + set.objective_offset
+}
+
+/// `recompute_residuals` after `solve_diffuse_and_scales`, then
+/// `gauge_rescale` and the objective, in one pass over the caches: the
+/// residuals use the factors before the gauge and the caches before their
+/// rescaling, exactly as the three passes in turn (bit-identical).
+fn residuals_rescale_objective(set: &FitSet, st: &mut State, measure: &[f64]) -> f64 {
+    let solved = st.factors.clone();
+    fill_unconstrained(&mut st.factors, set);
+    let k = normalise(&mut st.factors, set, measure);
+    let lobes = solved.lobes();
+    let basis = &st.basis;
+    let [e] = chunked_sum_mut(&mut st.cache, |start, chunk| {
+        let mut e = 0.0;
+        for (i, c) in chunk.iter_mut().enumerate() {
+            let j = start + i;
+            set_residual(set, &solved, basis, j, c);
+            e += squared_error(c, &set.w[j]);
+            rescale(c, &k, lobes);
+        }
+        [e]
+    });
+    e + set.objective_offset
 }
 
 /// Hold masked scales at exactly 0.

@@ -197,6 +197,29 @@ pub(crate) fn chunked_sum<const K: usize>(
         .into_par_iter()
         .map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(n)))
         .collect();
+    sum_in_order(partial)
+}
+
+/// [`chunked_sum`] fused with a pass that writes `items` (one per sample):
+/// `f(start, chunk)` updates the chunk of samples from `start` and returns
+/// its partial sums. Same chunks and summation order as [`chunked_sum`], so
+/// the total is bit-identical to a separate [`chunked_sum`] pass after it.
+pub(crate) fn chunked_sum_mut<T: Send, const K: usize>(
+    items: &mut [T],
+    f: impl Fn(usize, &mut [T]) -> [f64; K] + Sync,
+) -> [f64; K] {
+    use rayon::prelude::*;
+    let partial: Vec<[f64; K]> = items
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| f(c * CHUNK, chunk))
+        .collect();
+    sum_in_order(partial)
+}
+
+/// The chunks' partial sums added in chunk order (the fixed order that
+/// makes the reductions independent of the thread count).
+fn sum_in_order<const K: usize>(partial: Vec<[f64; K]>) -> [f64; K] {
     let mut total = [0.0; K];
     for p in partial {
         for k in 0..K {

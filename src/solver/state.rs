@@ -1,6 +1,6 @@
 //! Working factors (f64) and the per-sample caches the updates share.
 
-use super::{chunked_sum, MAX_LOBES};
+use super::{chunked_sum, chunked_sum_mut, MAX_LOBES};
 use crate::model::{DiffuseForm, Layout, Lobe, Model};
 use crate::samples::FitSet;
 use rayon::prelude::*;
@@ -106,6 +106,82 @@ pub(crate) fn basis_at(basis: &Option<Vec<[f64; 3]>>, j: usize, ch: usize) -> f6
     basis.as_ref().map_or(1.0, |b| b[j][ch])
 }
 
+/// Sample j's residuals r = model - data from the factors and its cached
+/// factor values.
+#[inline]
+pub(crate) fn set_residual(
+    set: &FitSet,
+    f: &Factors,
+    basis: &Option<Vec<[f64; 3]>>,
+    j: usize,
+    c: &mut Cache,
+) {
+    for ch in 0..3 {
+        let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
+        for m in 0..f.lobes() {
+            v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+        }
+        c.r[ch] = v - set.y[j][ch];
+    }
+}
+
+/// Fills sample j's cache from the factors (factor values, then residuals);
+/// generic, so each use is monomorphised and inlined.
+trait Fill: Fn(&FitSet, &Factors, &Option<Vec<[f64; 3]>>, usize, &mut Cache) + Sync {}
+impl<T: Fn(&FitSet, &Factors, &Option<Vec<[f64; 3]>>, usize, &mut Cache) + Sync> Fill for T {}
+
+/// The stencil widths the refresh dispatches on.
+fn widths(set: &FitSet) -> (usize, usize, usize) {
+    (set.d_st.width, set.f_st.width, set.gi_st.width)
+}
+
+/// [`Fill`] for stencil widths known at compile time (unrolled loops).
+#[inline(always)]
+fn fill_n<const WD: usize, const WF: usize, const WG: usize>(
+    set: &FitSet,
+    f: &Factors,
+    basis: &Option<Vec<[f64; 3]>>,
+    j: usize,
+    c: &mut Cache,
+) {
+    use crate::grid::StencilTable as T;
+    let (d, gi, go) = (
+        set.d_st.row::<WD>(j),
+        set.gi_st.row::<WG>(j),
+        set.go_st.row::<WG>(j),
+    );
+    for m in 0..f.lobes() {
+        c.dv[m] = T::apply_row(d, &f.d[m]);
+        c.gi[m] = T::apply_row(gi, &f.g[m]);
+        c.go[m] = T::apply_row(go, &f.g[m]);
+    }
+    let fr = set.f_st.row::<WF>(j);
+    for ch in 0..3 {
+        c.fv[ch] = T::apply_row(fr, &f.f[ch]);
+    }
+    set_residual(set, f, basis, j, c);
+}
+
+/// [`Fill`] for any stencil widths.
+#[inline(always)]
+fn fill_any(set: &FitSet, f: &Factors, basis: &Option<Vec<[f64; 3]>>, j: usize, c: &mut Cache) {
+    for m in 0..f.lobes() {
+        c.dv[m] = set.d_st.apply(j, &f.d[m]);
+        c.gi[m] = set.gi_st.apply(j, &f.g[m]);
+        c.go[m] = set.go_st.apply(j, &f.g[m]);
+    }
+    for ch in 0..3 {
+        c.fv[ch] = set.f_st.apply(j, &f.f[ch]);
+    }
+    set_residual(set, f, basis, j, c);
+}
+
+/// One sample's term of the objective: sum_C w_C r_C^2.
+#[inline]
+pub(crate) fn squared_error(c: &Cache, w: &[f64; 3]) -> f64 {
+    w[0] * c.r[0] * c.r[0] + w[1] * c.r[1] * c.r[1] + w[2] * c.r[2] * c.r[2]
+}
+
 impl State {
     /// State with fresh caches.
     pub fn new(set: &FitSet, factors: Factors) -> Self {
@@ -121,66 +197,42 @@ impl State {
 
     /// Recompute every cache from the factors (removes incremental drift).
     pub fn refresh(&mut self, set: &FitSet) {
+        self.refresh_with::<false>(set);
+    }
+
+    /// [`State::refresh`] and then [`State::objective`], in one pass over
+    /// the samples (bit-identical to the two calls).
+    pub(crate) fn refresh_objective(&mut self, set: &FitSet) -> f64 {
+        self.refresh_with::<true>(set) + set.objective_offset
+    }
+
+    /// The refresh; with `OBJ`, also the weighted squared residuals' sum
+    /// (without the offset), else 0.
+    fn refresh_with<const OBJ: bool>(&mut self, set: &FitSet) -> f64 {
         // Dispatch on the stencil widths once, so the per-sample loops are
         // unrolled for the built-in layouts (same arithmetic either way).
-        match (set.d_st.width, set.f_st.width, set.gi_st.width) {
-            (2, 2, 4) => self.refresh_n::<2, 2, 4>(set),
-            (4, 2, 8) => self.refresh_n::<4, 2, 8>(set),
-            _ => self.refresh_any(set),
+        match widths(set) {
+            (2, 2, 4) => self.refresh_by::<OBJ>(set, fill_n::<2, 2, 4>),
+            (4, 2, 8) => self.refresh_by::<OBJ>(set, fill_n::<4, 2, 8>),
+            _ => self.refresh_by::<OBJ>(set, fill_any),
         }
     }
 
-    fn refresh_n<const WD: usize, const WF: usize, const WG: usize>(&mut self, set: &FitSet) {
-        use crate::grid::StencilTable as T;
+    fn refresh_by<const OBJ: bool>(&mut self, set: &FitSet, fill: impl Fill) -> f64 {
         let f = &self.factors;
         let basis = &self.basis;
-        let lobes = f.lobes();
-        self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
-            let (d, gi, go) = (
-                set.d_st.row::<WD>(j),
-                set.gi_st.row::<WG>(j),
-                set.go_st.row::<WG>(j),
-            );
-            for m in 0..lobes {
-                c.dv[m] = T::apply_row(d, &f.d[m]);
-                c.gi[m] = T::apply_row(gi, &f.g[m]);
-                c.go[m] = T::apply_row(go, &f.g[m]);
-            }
-            let fr = set.f_st.row::<WF>(j);
-            for ch in 0..3 {
-                c.fv[ch] = T::apply_row(fr, &f.f[ch]);
-            }
-            for ch in 0..3 {
-                let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
-                for m in 0..lobes {
-                    v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+        let [e] = chunked_sum_mut(&mut self.cache, |start, chunk| {
+            let mut e = 0.0;
+            for (i, c) in chunk.iter_mut().enumerate() {
+                let j = start + i;
+                fill(set, f, basis, j, c);
+                if OBJ {
+                    e += squared_error(c, &set.w[j]);
                 }
-                c.r[ch] = v - set.y[j][ch];
             }
+            [e]
         });
-    }
-
-    fn refresh_any(&mut self, set: &FitSet) {
-        let f = &self.factors;
-        let basis = &self.basis;
-        let lobes = f.lobes();
-        self.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
-            for m in 0..lobes {
-                c.dv[m] = set.d_st.apply(j, &f.d[m]);
-                c.gi[m] = set.gi_st.apply(j, &f.g[m]);
-                c.go[m] = set.go_st.apply(j, &f.g[m]);
-            }
-            for ch in 0..3 {
-                c.fv[ch] = set.f_st.apply(j, &f.f[ch]);
-            }
-            for ch in 0..3 {
-                let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
-                for m in 0..lobes {
-                    v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
-                }
-                c.r[ch] = v - set.y[j][ch];
-            }
-        });
+        e
     }
 
     /// The model with the state's diffuse form.
@@ -211,8 +263,7 @@ impl State {
         let [e] = chunked_sum(set.len(), |range| {
             let mut e = 0.0;
             for j in range {
-                let (c, w) = (&self.cache[j], &set.w[j]);
-                e += w[0] * c.r[0] * c.r[0] + w[1] * c.r[1] * c.r[1] + w[2] * c.r[2] * c.r[2];
+                e += squared_error(&self.cache[j], &set.w[j]);
             }
             [e]
         });

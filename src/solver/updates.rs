@@ -8,7 +8,7 @@
 //! channels that share the entry). Clamping the new value at 0 is then the
 //! exact constrained minimum.
 
-use super::state::{basis_at, Cache, State};
+use super::state::{basis_at, set_residual, Cache, State};
 use super::{chunked_sum, MAX_LOBES};
 use crate::nnls::nnls_enumerate;
 use crate::samples::{FitSet, Incidence};
@@ -227,6 +227,17 @@ pub(crate) fn update_diffuse_and_scales(
     st: &mut State,
     mask: &[[bool; 3]; MAX_LOBES],
 ) {
+    solve_diffuse_and_scales(set, st, mask);
+    recompute_residuals(set, st);
+}
+
+/// [`update_diffuse_and_scales`] without the residuals' recomputation: the
+/// caller must recompute them (e.g. fused with the gauge's rescaling).
+pub(crate) fn solve_diffuse_and_scales(
+    set: &FitSet,
+    st: &mut State,
+    mask: &[[bool; 3]; MAX_LOBES],
+) {
     let lobes = st.factors.lobes();
     let k = lobes + 1;
     // Gram matrix and right-hand side per channel: basis b_0 = the diffuse factor, b_m = F D G G/(cc).
@@ -291,22 +302,15 @@ pub(crate) fn update_diffuse_and_scales(
             }
         }
     }
-    recompute_residuals(set, st);
 }
 
 /// r = model - data of every sample from the factors and the cached factor
 /// values (after d, s or the diffuse basis changed).
 pub(crate) fn recompute_residuals(set: &FitSet, st: &mut State) {
-    let lobes = st.factors.lobes();
     let f = &st.factors;
     let basis = &st.basis;
-    st.cache.par_iter_mut().enumerate().for_each(|(j, c)| {
-        for ch in 0..3 {
-            let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
-            for m in 0..lobes {
-                v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
-            }
-            c.r[ch] = v - set.y[j][ch];
-        }
-    });
+    st.cache
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(j, c)| set_residual(set, f, basis, j, c));
 }
