@@ -14,6 +14,10 @@ use npf::solver::{Executor, FitOptions};
 use npf::synth_aniso::{catalogue, known_model, AnalyticBrdf};
 use std::f64::consts::PI;
 
+#[path = "common/monotone.rs"]
+mod monotone;
+use monotone::assert_stages_monotone;
+
 fn material(name: &str) -> AnalyticBrdf {
     catalogue().into_iter().find(|m| m.name == name).unwrap()
 }
@@ -213,19 +217,7 @@ fn objective_never_rises_and_threads_do_not_change_results() {
     )
     .run()
     .unwrap();
-    let mut prev = one.initial_objective;
-    for r in &one.history {
-        for s in &r.stages {
-            let e = s.objective.expect("traced");
-            assert!(
-                e <= prev * (1.0 + 1e-12),
-                "sweep {} {:?}: {prev} -> {e}",
-                r.sweep,
-                s.stage
-            );
-            prev = e;
-        }
-    }
+    assert_stages_monotone(&one, "");
     assert!(one.objective < 0.5 * one.initial_objective);
     assert!(one
         .history

@@ -12,6 +12,10 @@ use npf::samples::{FitSet, SampleOptions, Weighting};
 use npf::solver::{DiffuseKind, Executor, Factors, FitOptions, FitResult};
 use npf::synth::known_factor_model;
 
+#[path = "common/monotone.rs"]
+mod monotone;
+use monotone::assert_stages_monotone;
+
 /// One rough lobe scaled to reflect at most 40 % at normal incidence (a
 /// lobe reflecting more than it receives has no energy left to couple),
 /// plus a diffuse term of the given form.
@@ -123,19 +127,7 @@ fn objective_never_rises_with_diffuse_refreshes() {
     let s = samples(&t, 11);
     for kind in [DiffuseKind::EnergyCoupled, DiffuseKind::OrenNayar] {
         let res = fit(&s, kind, 8, true);
-        let mut prev = res.initial_objective;
-        for r in &res.history {
-            for st in &r.stages {
-                let e = st.objective.expect("traced");
-                assert!(
-                    e <= prev * (1.0 + 1e-12),
-                    "{kind:?} sweep {} {:?}: {prev} -> {e}",
-                    r.sweep,
-                    st.stage
-                );
-                prev = e;
-            }
-        }
+        assert_stages_monotone(&res, &format!("{kind:?}"));
         assert!(res.objective < res.initial_objective);
     }
 }

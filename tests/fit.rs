@@ -10,6 +10,10 @@ use npf::samples::{FitSet, SampleOptions, Weighting};
 use npf::solver::{Executor, FitOptions, FitResult, GMethod};
 use npf::synth::{known_factor_model, GgxLambert};
 
+#[path = "common/monotone.rs"]
+mod monotone;
+use monotone::assert_stages_monotone;
+
 fn fit(samples: &MeasuredSamples, opts: FitOptions) -> FitResult {
     fit_with(samples, SampleOptions::default(), opts)
 }
@@ -249,19 +253,7 @@ fn anisotropic_layout_is_fitted_by_the_same_executor() {
     .run()
     .unwrap();
     assert_eq!(res.model.param_count(), 2010);
-    let mut prev = res.initial_objective;
-    for r in &res.history {
-        for s in &r.stages {
-            let e = s.objective.expect("traced");
-            assert!(
-                e <= prev * (1.0 + 1e-12),
-                "sweep {} {:?}: {prev} -> {e}",
-                r.sweep,
-                s.stage
-            );
-            prev = e;
-        }
-    }
+    assert_stages_monotone(&res, "");
     eprintln!(
         "anisotropic: {} -> {} in {} sweeps",
         res.initial_objective,
