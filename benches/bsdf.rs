@@ -19,10 +19,10 @@ use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use npf::bsdf::NpfBxdf;
 use npf::model::{Layout, Model};
-use rand::{Rng, SeedableRng};
-use rand_pcg::Pcg64;
 
-const BATCH: usize = 1024;
+#[path = "common/bsdf_inputs.rs"]
+mod bsdf_inputs;
+use bsdf_inputs::BATCH;
 
 fn model() -> Model {
     match std::env::var_os("NPF_BENCH_MODEL") {
@@ -122,27 +122,7 @@ impl Measurement for CpuTime {
 
 fn bench(c: &mut Criterion<CpuTime>) {
     let b = NpfBxdf::new(model()).expect("a valid model");
-    let mut rng = Pcg64::seed_from_u64(1);
-    let us: Vec<[f64; 3]> = (0..BATCH)
-        .map(|_| [rng.gen(), rng.gen(), rng.gen()])
-        .collect();
-    let wos: Vec<[f64; 3]> = (0..BATCH)
-        .map(|_| {
-            let (t, p) = (
-                rng.gen::<f64>() * 80f64.to_radians(),
-                rng.gen::<f64>() * std::f64::consts::TAU,
-            );
-            [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
-        })
-        .collect();
-    let mut pairs = Vec::with_capacity(BATCH);
-    while pairs.len() < BATCH {
-        let wo = wos[pairs.len()];
-        let s = b.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
-        if !s.is_lost() {
-            pairs.push((wo, s.wi));
-        }
-    }
+    let bsdf_inputs::Inputs { us, wos, pairs } = bsdf_inputs::inputs(&b);
     let mut g = c.benchmark_group("npf_bxdf");
     g.throughput(Throughput::Elements(BATCH as u64));
     g.bench_function("eval", |bench| {
@@ -188,6 +168,21 @@ fn bench(c: &mut Criterion<CpuTime>) {
             let mut acc = 0.0;
             for (wo, u) in wos.iter().zip(&us) {
                 acc += b.sample(black_box(*wo), u[0], [u[1], u[2]]).weight[1];
+            }
+            acc
+        })
+    });
+    // The same draws at one view (theta_o 40 degrees): the sampler's
+    // tables for that view stay in cache, as for coherent rays.
+    let wo1 = {
+        let t = 40f64.to_radians();
+        [t.sin(), 0.0, t.cos()]
+    };
+    g.bench_function("sample_one_view", |bench| {
+        bench.iter(|| {
+            let mut acc = 0.0;
+            for u in &us {
+                acc += b.sample(black_box(wo1), u[0], [u[1], u[2]]).weight[1];
             }
             acc
         })

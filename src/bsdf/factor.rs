@@ -14,6 +14,7 @@
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use super::f64x2::floor_index;
 use super::flat::{acos, FlatEval};
 use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
@@ -213,7 +214,7 @@ impl NpfBxdf {
     fn t_cell(&self, t: f64) -> usize {
         let n = self.edges.len() - 1;
         let g = self.t_guide.len();
-        let b = ((t.sqrt().sqrt() * g as f64) as usize).min(g - 1);
+        let b = floor_index(t.sqrt().sqrt() * g as f64).min(g - 1);
         let mut i = self.t_guide[b] as usize;
         while i + 1 < n && self.edges[i + 1] <= t {
             i += 1;
@@ -313,7 +314,7 @@ impl NpfBxdf {
         let x = theta.to_degrees() / VIEW_MAX_DEG * (VIEW_NODES - 1) as f64;
         let x = x.clamp(0.0, (VIEW_NODES - 1) as f64);
         // x >= 0 (or NaN, 0 either way): truncation is floor, without libm.
-        let k = (x as usize).min(VIEW_NODES - 2);
+        let k = floor_index(x).min(VIEW_NODES - 2);
         (k, x - k as f64)
     }
 
@@ -379,19 +380,8 @@ impl NpfBxdf {
         wi: Vec3,
         row: (usize, f64),
     ) -> Option<(f64, Option<((usize, f64), Vec3, f64, f64)>)> {
-        let p_diffuse = self.selection_at(row, 0);
-        let pdf = if p_diffuse > 0.0 {
-            p_diffuse * wi[2] / PI
-        } else {
-            0.0
-        };
-        let lobe = half_vector(wi, wo).and_then(|(h, t)| {
-            let wo_h = dot(wo, h);
-            // Density per solid angle of h: (table density / 2) over signed
-            // azimuths, times dt dphi / dOmega_h = 2 cos theta_h.
-            (h[2] > 0.0 && wo_h > 0.0 && (0.0..1.0).contains(&t))
-                .then(|| (row, h, t, h[2] / (4.0 * wo_h)))
-        });
+        let pdf = self.diffuse_pdf(wi, row);
+        let lobe = lobe_jacobian(wo, wi).map(|(h, t, jac)| (row, h, t, jac));
         Some((pdf, lobe))
     }
 
@@ -415,7 +405,7 @@ impl NpfBxdf {
     /// position of wo (wo and wi above the horizon), as `sample` calls it.
     #[inline]
     fn pdf_at(&self, wo: Vec3, wi: Vec3, row: (usize, f64)) -> f64 {
-        let Some((mut pdf, lobe)) = self.pdf_parts_at(wo, wi, row) else {
+        let Some((pdf, lobe)) = self.pdf_parts_at(wo, wi, row) else {
             return 0.0;
         };
         let Some((row, h, t, jac)) = lobe.filter(|_| !self.densities.is_empty()) else {
@@ -424,6 +414,30 @@ impl NpfBxdf {
         let i = self.t_cell(t);
         let (ex, ey) = azimuth_frame(wo);
         let j = azimuth_cell(h, ex, ey);
+        self.add_lobe_densities(pdf, row, (i, j), jac)
+    }
+
+    /// The diffuse component's part of the mixture density.
+    #[inline]
+    fn diffuse_pdf(&self, wi: Vec3, row: (usize, f64)) -> f64 {
+        let p_diffuse = self.selection_at(row, 0);
+        if p_diffuse > 0.0 {
+            p_diffuse * wi[2] / PI
+        } else {
+            0.0
+        }
+    }
+
+    /// `pdf` plus every lobe's part of the mixture density for a half
+    /// vector in cell (i, j) (t cell, azimuth cell), added lobe by lobe.
+    #[inline]
+    fn add_lobe_densities(
+        &self,
+        mut pdf: f64,
+        row: (usize, f64),
+        (i, j): (usize, usize),
+        jac: f64,
+    ) -> f64 {
         let nl = self.model.lobes.len();
         let cells = self.edges.len() - 1;
         let base = ((view_node(row) * cells + i) * PHI_CELLS + j) * nl;
@@ -497,22 +511,32 @@ impl NpfBxdf {
         let Some(c) = component.or(last) else {
             return BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
         };
-        let (wi, component) = if c == 0 {
-            (cosine_hemisphere(u), Component::Diffuse)
+        let (wi, component, pdf) = if c == 0 {
+            let wi = cosine_hemisphere(u);
+            if !(wi[2] > 0.0) {
+                return BsdfSample::lost(wi, Component::Diffuse);
+            }
+            (wi, Component::Diffuse, self.pdf_at(wo, wi, row))
         } else {
             let m = c - 1;
             let tables = self.lobes[m].as_ref().expect("selected lobes have tables");
-            let h = sample_half_vector(&tables[view_node(row)], wo, u);
+            let (h, cell) = sample_half_vector(&tables[view_node(row)], wo, u);
             let wi = reflect(wo, h);
-            if !(dot(wo, h) > 0.0 && wi[2] > 0.0) {
+            let wo_h = dot(wo, h);
+            if !(wo_h > 0.0 && wi[2] > 0.0) {
                 return BsdfSample::lost(wi, Component::Lobe(m));
             }
-            (wi, Component::Lobe(m))
+            // The drawn cell is where pdf finds wi's half vector (up to
+            // rounding at a cell edge): its density row serves directly.
+            // The Jacobian is pdf's own, from wi (the same rounding).
+            let pdf = match lobe_jacobian(wo, wi) {
+                Some((_, _, jac)) => {
+                    self.add_lobe_densities(self.diffuse_pdf(wi, row), row, cell, jac)
+                }
+                None => self.pdf_at(wo, wi, row),
+            };
+            (wi, Component::Lobe(m), pdf)
         };
-        if !(wi[2] > 0.0) {
-            return BsdfSample::lost(wi, component);
-        }
-        let pdf = self.pdf_at(wo, wi, row);
         if !(pdf > 0.0) {
             return BsdfSample::lost(wi, component);
         }
@@ -582,6 +606,19 @@ impl NpfBxdf {
         }
         lost
     }
+}
+
+/// The half vector h of (wo, wi), t = sin^2 theta_h and the Jacobian
+/// `cos theta_h / (4 wo.h)` from the tables' density to solid angle of wi,
+/// when a lobe could have drawn wi (h above the surface and facing wo).
+#[inline]
+fn lobe_jacobian(wo: Vec3, wi: Vec3) -> Option<(Vec3, f64, f64)> {
+    half_vector(wi, wo).and_then(|(h, t)| {
+        let wo_h = dot(wo, h);
+        // Density per solid angle of h: (table density / 2) over signed
+        // azimuths, times dt dphi / dOmega_h = 2 cos theta_h.
+        (h[2] > 0.0 && wo_h > 0.0 && (0.0..1.0).contains(&t)).then(|| (h, t, h[2] / (4.0 * wo_h)))
+    })
 }
 
 /// Fraction of azimuths phi_h for which the reflection of wo (polar angle
@@ -664,23 +701,77 @@ fn azimuth_cell(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> usize {
     EDGE_COS.iter().filter(|&&c| x <= c * r).count()
 }
 
-/// A half vector drawn from a lobe's view table: u[0] picks t, u[1] the
-/// sign of the relative azimuth (below or above 1/2) and, rescaled, its
-/// magnitude.
+/// A half vector drawn from a lobe's view table, with its (t, azimuth)
+/// cell: u[0] picks t, u[1] the sign of the relative azimuth (below or
+/// above 1/2) and, rescaled, its magnitude.
 #[inline]
-fn sample_half_vector(table: &PiecewiseConstant2D, wo: Vec3, u: [f64; 2]) -> Vec3 {
+fn sample_half_vector(
+    table: &PiecewiseConstant2D,
+    wo: Vec3,
+    u: [f64; 2],
+) -> (Vec3, (usize, usize)) {
     let v = unit(u[1]);
     let (sign, v) = if v < 0.5 {
         (1.0, 2.0 * v)
     } else {
         (-1.0, (2.0 * v - 1.0).min(1.0))
     };
-    let (t, phi) = table.sample([u[0], v]);
+    let (i, t, j, dv) = table.sample_cells([u[0], v]);
     let (sin_h, cos_h) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
-    let (sp, cp) = phi.sin_cos();
+    let (sp, cp) = azimuth_sin_cos(j, dv);
     let (hx, hy) = (sin_h * cp, sign * sin_h * sp);
     let (ex, ey) = azimuth_frame(wo);
-    [hx * ex[0] + hy * ey[0], hx * ex[1] + hy * ey[1], cos_h]
+    (
+        [hx * ex[0] + hy * ey[0], hx * ex[1] + hy * ey[1], cos_h],
+        (i, j),
+    )
+}
+
+/// (sin, cos) of the azimuth (j + dv) pi / PHI_CELLS, dv in [0, 1]: the
+/// cell centre's (tabulated) rotated by a = (dv - 1/2) pi / PHI_CELLS,
+/// |a| <= pi / 16, whose sine and cosine are Taylor polynomials with
+/// remainders below 1e-18 (tested against `f64::sin_cos`).
+#[inline]
+fn azimuth_sin_cos(j: usize, dv: f64) -> (f64, f64) {
+    const _: () = assert!(PHI_CELLS == 8, "CENTRE holds the centres of 8 cells");
+    // (sin, cos) of (j + 1/2) pi / 8.
+    const CENTRE: [(f64, f64); PHI_CELLS] = {
+        let (s1, c1) = (0.195_090_322_016_128_26, 0.980_785_280_403_230_4);
+        let (s3, c3) = (0.555_570_233_019_602_2, 0.831_469_612_302_545_2);
+        [
+            (s1, c1),
+            (s3, c3),
+            (c3, s3),
+            (c1, s1),
+            (c1, -s1),
+            (c3, -s3),
+            (s3, -c3),
+            (s1, -c1),
+        ]
+    };
+    // Taylor coefficients (-1)^k / (2k+1)! and (-1)^k / (2k)!.
+    const S: [f64; 5] = [
+        -1.0 / 6.0,
+        1.0 / 120.0,
+        -1.0 / 5040.0,
+        1.0 / 362_880.0,
+        -1.0 / 39_916_800.0,
+    ];
+    const C: [f64; 6] = [
+        -1.0 / 2.0,
+        1.0 / 24.0,
+        -1.0 / 720.0,
+        1.0 / 40_320.0,
+        -1.0 / 3_628_800.0,
+        1.0 / 479_001_600.0,
+    ];
+    let a = (dv - 0.5) * (PI / PHI_CELLS as f64);
+    let a2 = a * a;
+    let sin_a = a + a * a2 * (S[0] + a2 * (S[1] + a2 * (S[2] + a2 * (S[3] + a2 * S[4]))));
+    let cos_a =
+        1.0 + a2 * (C[0] + a2 * (C[1] + a2 * (C[2] + a2 * (C[3] + a2 * (C[4] + a2 * C[5])))));
+    let (sc, cc) = CENTRE[j.min(PHI_CELLS - 1)];
+    (sc * cos_a + cc * sin_a, cc * cos_a - sc * sin_a)
 }
 
 /// Cells whose mass is below this fraction of the lobe's total get none:
@@ -953,6 +1044,21 @@ mod tests {
                 + 4 * 2 * cells
                 + FlatEval::new(b.model()).unwrap().table_bytes()
         );
+    }
+
+    #[test]
+    fn azimuth_sin_cos_is_the_library_s() {
+        let mut worst = 0.0f64;
+        for j in 0..PHI_CELLS {
+            for k in 0..=1000 {
+                let dv = k as f64 / 1000.0;
+                let (s, c) = azimuth_sin_cos(j, dv);
+                let (s0, c0) = ((j as f64 + dv) * PI / PHI_CELLS as f64).sin_cos();
+                worst = worst.max((s - s0).abs()).max((c - c0).abs());
+            }
+        }
+        // Within a few ulps of 1 (both sides round).
+        assert!(worst <= 1e-15, "worst {worst:e}");
     }
 
     #[test]

@@ -8,7 +8,8 @@
 //! times); `Model::eval` stays the model's definition, and
 //! `tests/sampling_bxdf.rs` checks the two agree to 1e-9 relative.
 
-use crate::grid::axis::{catmull_rom_weights, linear_weights};
+use super::f64x2::{floor_index, F64x2};
+use crate::grid::axis::linear_weights;
 use crate::grid::Axis;
 use crate::model::Model;
 use npf_data_loaders::geometry::Vec3;
@@ -31,7 +32,15 @@ const PAD_AFTER: usize = 3;
 #[derive(Clone, Debug)]
 struct FlatTable {
     axis: Axis,
+    /// The axis's coordinate per unit x = theta / (pi/2): n, or n - 1 on a
+    /// Catmull-Rom axis (as f64 once, not per call).
+    scale: f64,
     rows: Vec<[f64; FLAT_LOBES]>,
+    /// On a Catmull-Rom axis, per interval i the power-basis coefficients
+    /// `cubic[i][p][lane]` of the spline in t = p - i: the stencil's
+    /// weights are cubics in t, so the value is a cubic too, evaluated by
+    /// Horner's rule instead of weights times four rows.
+    cubic: Vec<[[f64; FLAT_LOBES]; 4]>,
 }
 
 impl FlatTable {
@@ -43,60 +52,144 @@ impl FlatTable {
                 rows[PAD_BEFORE + k][lane] = v as f64;
             }
         }
-        FlatTable { axis, rows }
-    }
-
-    /// The interpolated value of every lane at angle theta: exactly
-    /// `axis.stencil(theta).apply_f32(lane)` (the same weights, summed in
-    /// the same slot order; unused slots have weight 0 on finite values).
-    #[inline(always)]
-    fn eval(&self, theta: f64) -> [f64; FLAT_LOBES] {
-        let (base, w) = stencil(self.axis, theta);
-        let r = &self.rows[base..base + 4];
-        let mut out = [0.0; FLAT_LOBES];
-        for (l, o) in out.iter_mut().enumerate() {
-            *o = w[0] * r[0][l] + w[1] * r[1][l] + w[2] * r[2][l] + w[3] * r[3][l];
+        let cubic = match axis {
+            Axis::CatmullRom { n } if n >= 2 => (0..n - 1)
+                .map(|i| {
+                    let w = catmull_rom_power_basis(i, n);
+                    let mut c = [[0.0; FLAT_LOBES]; 4];
+                    for (p, cp) in c.iter_mut().enumerate() {
+                        for (lane, v) in cp.iter_mut().enumerate() {
+                            // Slot k is node i - 1 + k (padded row PAD_BEFORE + i - 1 + k).
+                            *v = (0..4)
+                                .map(|k| w[k][p] * rows[PAD_BEFORE + i - 1 + k][lane])
+                                .sum();
+                        }
+                    }
+                    c
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
+        let scale = match axis {
+            Axis::CatmullRom { n } => (n - 1) as f64,
+            _ => n as f64,
+        };
+        FlatTable {
+            axis,
+            scale,
+            rows,
+            cubic,
         }
-        out
+    }
+
+    /// The interpolated value of every lane at angle theta, as lanes
+    /// (0, 1) and (2, 3), given x = clamp(theta / (pi/2), 0, 1):
+    /// `axis.stencil(theta).apply_f32(lane)` (a linear stencil's weights
+    /// and slot order exactly, its two zero-weight slots skipped; the
+    /// Catmull-Rom spline in its power basis, equal up to rounding).
+    #[inline(always)]
+    fn eval(&self, theta: f64, x: f64) -> [F64x2; 2] {
+        match self.axis {
+            Axis::SqrtAngle { n } => self.lerp(linear(x.sqrt() * self.scale, n)),
+            Axis::Uniform { n } => self.lerp(linear(x * self.scale, n)),
+            Axis::Squared { n } => self.lerp(linear(self.axis.coord(theta), n)),
+            Axis::CatmullRom { .. } => {
+                // floor, at most n - 2 (the last interval; x <= 1).
+                let p = x * self.scale;
+                let i = floor_index(p).min(self.cubic.len() - 1);
+                let t = F64x2::splat((p - i as u32 as f64).clamp(0.0, 1.0));
+                let c = &self.cubic[i];
+                [cubic_lanes(c, 0, t), cubic_lanes(c, 2, t)]
+            }
+        }
+    }
+
+    /// A two-node stencil (base row, weights) applied to every lane.
+    #[inline(always)]
+    fn lerp(&self, (base, w0, w1): (usize, f64, f64)) -> [F64x2; 2] {
+        let r = &self.rows[base..base + 2];
+        let (w0, w1) = (F64x2::splat(w0), F64x2::splat(w1));
+        [
+            w0 * pair(&r[0], 0) + w1 * pair(&r[1], 0),
+            w0 * pair(&r[0], 2) + w1 * pair(&r[1], 2),
+        ]
+    }
+
+    /// The interpolated value of every lane at angle theta (the scalar form
+    /// of [`FlatTable::eval`], for tests).
+    #[cfg(test)]
+    fn eval_lanes(&self, theta: f64) -> [f64; FLAT_LOBES] {
+        let x = (theta / FRAC_PI_2).clamp(0.0, 1.0);
+        let [a, b] = self.eval(theta, x);
+        [a.lo(), a.hi(), b.lo(), b.hi()]
     }
 }
 
-/// The stencil of `axis` at theta as (first padded row, four weights):
-/// the same nodes and weights as `Axis::stencil` (`grid::axis`).
+/// Lanes (l, l + 1) of a row, l = 0 or 2.
 #[inline(always)]
-fn stencil(axis: Axis, theta: f64) -> (usize, [f64; 4]) {
-    let x = (theta / FRAC_PI_2).clamp(0.0, 1.0);
-    match axis {
-        Axis::SqrtAngle { n } => linear(x.sqrt() * n as f64, n),
-        Axis::Uniform { n } => linear(x * n as f64, n),
-        Axis::Squared { n } => linear(axis.coord(theta), n),
-        Axis::CatmullRom { n } => catmull_rom(x * (n - 1) as f64, n),
+fn pair(r: &[f64; FLAT_LOBES], l: usize) -> F64x2 {
+    const _: () = assert!(FLAT_LOBES == 4, "rows are two lane pairs");
+    if l == 0 {
+        F64x2::load_lo(r)
+    } else {
+        F64x2::load_hi(r)
     }
 }
 
-/// `grid::axis`'s linear stencil, as (base, weights).
+/// Lanes (l, l + 1) of a power-basis cubic at t, by Horner's rule.
 #[inline(always)]
-fn linear(p: f64, n: usize) -> (usize, [f64; 4]) {
+fn cubic_lanes(c: &[[f64; FLAT_LOBES]; 4], l: usize, t: F64x2) -> F64x2 {
+    ((pair(&c[3], l) * t + pair(&c[2], l)) * t + pair(&c[1], l)) * t + pair(&c[0], l)
+}
+
+/// The Catmull-Rom weights of `grid::axis` on interval i of n nodes as
+/// polynomials in t: `w[k][p]` is the coefficient of t^p in slot k's
+/// weight (the same case analysis: centred tangents inside, the chord at
+/// the ends).
+fn catmull_rom_power_basis(i: usize, n: usize) -> [[f64; 4]; 4] {
+    // 2t^3 - 3t^2 + 1, -2t^3 + 3t^2, t^3 - 2t^2 + t, t^3 - t^2.
+    let (p1, p2, h10, h11) = (
+        [1.0, 0.0, -3.0, 2.0],
+        [0.0, 0.0, 3.0, -2.0],
+        [0.0, 1.0, -2.0, 1.0],
+        [0.0, 0.0, -1.0, 1.0],
+    );
+    let mut w = [[0.0; 4], p1, p2, [0.0; 4]];
+    for p in 0..4 {
+        if i > 0 {
+            w[0][p] = -0.5 * h10[p];
+            w[2][p] += 0.5 * h10[p];
+        } else {
+            w[1][p] -= h10[p];
+            w[2][p] += h10[p];
+        }
+        if i + 2 < n {
+            w[1][p] -= 0.5 * h11[p];
+            w[3][p] = 0.5 * h11[p];
+        } else {
+            w[1][p] -= h11[p];
+            w[2][p] += h11[p];
+        }
+    }
+    w
+}
+
+/// `grid::axis`'s linear stencil, as (first padded row, weights).
+#[inline(always)]
+fn linear(p: f64, n: usize) -> (usize, f64, f64) {
     let (i, w0, w1) = linear_weights(p, n);
-    (PAD_BEFORE + i, [w0, w1, 0.0, 0.0])
-}
-
-/// `grid::axis`'s Catmull-Rom stencil, as (base, weights): slot k is node
-/// i - 1 + k (the padding row before node 0 for k = 0 at i = 0).
-#[inline(always)]
-fn catmull_rom(p: f64, n: usize) -> (usize, [f64; 4]) {
-    let (i, w) = catmull_rom_weights(p, n);
-    (PAD_BEFORE + i - 1, w)
+    (PAD_BEFORE + i, w0, w1)
 }
 
 /// An isotropic model with at most [`FLAT_LOBES`] lobes, flattened for
 /// [`FlatEval::eval`].
 #[derive(Clone, Debug)]
 pub struct FlatEval {
-    lobes: usize,
     diffuse: [f64; 3],
     /// s[m][c] as f64.
     s: [[f64; 3]; FLAT_LOBES],
+    /// s[m][0] and s[m][1] as lanes.
+    s01: [F64x2; FLAT_LOBES],
     d: FlatTable,
     g: FlatTable,
     f: FlatTable,
@@ -124,9 +217,9 @@ impl FlatEval {
             s[m] = lobe.s.map(f64::from);
         }
         Some(FlatEval {
-            lobes: model.lobes.len(),
             diffuse: model.diffuse.map(f64::from),
             s,
+            s01: s.map(|v| F64x2::new(v[0], v[1])),
             d: FlatTable::new(l.d.theta, &d),
             g: FlatTable::new(l.g.theta, &g),
             f: FlatTable::new(l.f.theta, &f),
@@ -135,7 +228,10 @@ impl FlatEval {
 
     /// Heap bytes of the flat tables.
     pub fn table_bytes(&self) -> usize {
-        8 * FLAT_LOBES * (self.d.rows.len() + self.g.rows.len() + self.f.rows.len())
+        let t = [&self.d, &self.g, &self.f];
+        t.iter()
+            .map(|t| 8 * FLAT_LOBES * (t.rows.len() + 4 * t.cubic.len()))
+            .sum()
     }
 
     /// [`Model::eval`] of the model this was built from: the same angles
@@ -154,29 +250,37 @@ impl FlatEval {
         }
         let s = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
         let n = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
-        let [theta_h, theta_d, theta_i, theta_o] = acos4(
-            [
-                s[2] / n,
-                (wi[0] * s[0] + wi[1] * s[1] + wi[2] * s[2]) / n,
-                wi[2],
-                wo[2],
-            ]
-            .map(|c| c.clamp(0.0, 1.0)),
-        );
+        let (zero, one) = (F64x2::splat(0.0), F64x2::splat(1.0));
+        // Lanes (h, d) and (i, o): cosines, angles, and x = theta / (pi/2).
+        let c_hd = F64x2::new(s[2], wi[0] * s[0] + wi[1] * s[1] + wi[2] * s[2]) / F64x2::splat(n);
+        let c_io = F64x2::new(wi[2], wo[2]);
+        let t_hd = acos2(c_hd.max(zero).min(one));
+        let t_io = acos2(c_io.max(zero).min(one));
+        // x = theta / (pi/2) as the axes compute it (a product by 2/pi
+        // would move linear stencils by an ulp of their coordinate).
+        let quarter = F64x2::splat(FRAC_PI_2);
+        let x_hd = (t_hd / quarter).max(zero).min(one);
+        let x_io = (t_io / quarter).max(zero).min(one);
         let (ci, co) = (wi[2].min(1.0), wo[2].min(1.0));
-        let d = self.d.eval(theta_h);
-        let gi = self.g.eval(theta_i);
-        let go = self.g.eval(theta_o);
-        let f = self.f.eval(theta_d);
-        let mut v = self.diffuse;
-        let inv_cc = 1.0 / (ci * co);
-        for m in 0..self.lobes {
-            let spec = d[m] * gi[m] * go[m] * inv_cc;
-            for c in 0..3 {
-                v[c] += self.s[m][c] * f[c] * spec;
-            }
+        let d = self.d.eval(t_hd.lo(), x_hd.lo());
+        let f = self.f.eval(t_hd.hi(), x_hd.hi());
+        let gi = self.g.eval(t_io.lo(), x_io.lo());
+        let go = self.g.eval(t_io.hi(), x_io.hi());
+        let inv_cc = F64x2::splat(1.0 / (ci * co));
+        let spec = [0, 1].map(|h| d[h] * gi[h] * go[h] * inv_cc);
+        let spec = [spec[0].lo(), spec[0].hi(), spec[1].lo(), spec[1].hi()];
+        // Channels (0, 1) in one pair of lanes, channel 2 alone.
+        let mut v01 = F64x2::new(self.diffuse[0], self.diffuse[1]);
+        let mut v2 = self.diffuse[2];
+        let f2 = f[1].lo();
+        // Lanes past the model's lobes have s = 0 and zero rows, so add
+        // exact zeros (for finite spec, i.e. unless ci co underflows).
+        for (m, &sp) in spec.iter().enumerate() {
+            v01 = v01 + self.s01[m] * f[0] * F64x2::splat(sp);
+            v2 += self.s[m][2] * f2 * sp;
         }
-        v.map(|x| x.max(0.0))
+        let v01 = v01.max(zero);
+        [v01.lo(), v01.hi(), v2.max(0.0)]
     }
 }
 
@@ -239,30 +343,38 @@ pub fn acos(x: f64) -> f64 {
     2.0 * (df + w)
 }
 
-/// [`acos`] of four values in [0, 1] at once, without branches (so the
-/// lanes vectorise): the same rational approximation, without fdlibm's
-/// extra-precision split of the square root (one division less; error a
-/// few ulps, tested). Inputs outside [0, 1] must be clamped by the caller.
+/// [`asin_r`] lane by lane.
 #[inline(always)]
-pub fn acos4(x: [f64; 4]) -> [f64; 4] {
-    let mut z = [0.0; 4];
-    let mut a = [0.0; 4];
-    for k in 0..4 {
-        let small = x[k] < 0.5;
-        let zl = (1.0 - x[k]) * 0.5;
-        z[k] = if small { x[k] * x[k] } else { zl };
-        a[k] = if small { x[k] } else { zl.sqrt() };
-    }
-    let mut out = [0.0; 4];
-    for k in 0..4 {
-        let w = a[k] * asin_r(z[k]);
-        out[k] = if x[k] < 0.5 {
-            PIO2_HI - (a[k] - (PIO2_LO - w))
-        } else {
-            2.0 * (a[k] + w)
-        };
-    }
-    out
+fn asin_r2(z: F64x2) -> F64x2 {
+    let c = F64x2::splat;
+    let p = z * (c(PS0) + z * (c(PS1) + z * (c(PS2) + z * (c(PS3) + z * (c(PS4) + z * c(PS5))))));
+    let q = c(1.0) + z * (c(QS1) + z * (c(QS2) + z * (c(QS3) + z * c(QS4))));
+    p / q
+}
+
+/// [`acos`] of two values in [0, 1] at once, without branches: the same
+/// rational approximation, without fdlibm's extra-precision split of the
+/// square root (one division less; error a few ulps, tested). Inputs
+/// outside [0, 1] must be clamped by the caller.
+#[inline(always)]
+pub(crate) fn acos2(x: F64x2) -> F64x2 {
+    let half = F64x2::splat(0.5);
+    let zl = (F64x2::splat(1.0) - x) * half;
+    let z = x.lt_select(half, x * x, zl);
+    let a = x.lt_select(half, x, zl.sqrt());
+    let w = a * asin_r2(z);
+    let small = F64x2::splat(PIO2_HI) - (a - (F64x2::splat(PIO2_LO) - w));
+    let large = F64x2::splat(2.0) * (a + w);
+    x.lt_select(half, small, large)
+}
+
+/// [`acos`] of four values in [0, 1] at once (two [`acos2`]s): inputs
+/// outside [0, 1] must be clamped by the caller.
+#[cfg(test)]
+fn acos4(x: [f64; 4]) -> [f64; 4] {
+    let a = acos2(F64x2::new(x[0], x[1]));
+    let b = acos2(F64x2::new(x[2], x[3]));
+    [a.lo(), a.hi(), b.lo(), b.hi()]
 }
 
 #[cfg(test)]
@@ -270,6 +382,7 @@ mod tests {
     use super::*;
     use crate::model::Layout;
     use crate::synth::known_factor_model;
+    use std::f64::consts::FRAC_PI_2;
 
     #[test]
     fn acos_is_within_two_ulps_of_the_c_library() {
@@ -321,17 +434,26 @@ mod tests {
             let t = FlatTable::new(axis, &[&values]);
             for k in 0..=4000 {
                 let theta = k as f64 / 4000.0 * FRAC_PI_2 * 1.01;
-                let a = t.eval(theta)[0];
+                let a = t.eval_lanes(theta)[0];
                 let b = axis.stencil(theta).apply_f32(&values);
                 assert!(
                     (a - b).abs() <= 1e-14 * b.abs().max(1.0),
                     "{axis:?} {theta}"
                 );
             }
-            // Nodes themselves (the snapped cases).
+            // Nodes themselves: the linear stencils' snapped cases exactly,
+            // the power-basis cubic to rounding.
             for k in 0..axis.len() {
                 let theta = axis.node(k);
-                assert_eq!(t.eval(theta)[0], axis.stencil(theta).apply_f32(&values));
+                let (a, b) = (
+                    t.eval_lanes(theta)[0],
+                    axis.stencil(theta).apply_f32(&values),
+                );
+                if matches!(axis, Axis::CatmullRom { .. }) {
+                    assert!((a - b).abs() <= 2e-15 * b.abs(), "{axis:?} node {k}");
+                } else {
+                    assert_eq!(a, b, "{axis:?} node {k}");
+                }
             }
         }
     }

@@ -24,6 +24,7 @@
 
 mod anisotropic;
 mod compensated;
+mod f64x2;
 mod factor;
 mod flat;
 mod ggx;

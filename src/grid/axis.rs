@@ -185,14 +185,17 @@ pub(crate) fn linear_weights(p: f64, n: usize) -> (usize, f64, f64) {
     if n == 1 {
         return (0, 1.0, 0.0);
     }
-    let last = (n - 1) as f64;
+    // 32-bit conversions (grids have far fewer than 2^31 nodes): the same
+    // values as through usize, in fewer instructions on x86-64.
+    let last = (n - 1) as u32 as f64;
     if p >= last - SNAP {
         return (n - 1, 1.0, 0.0);
     }
     // Truncation is floor here (and for p < 0 both give 0), without a libm
     // call on baseline x86-64.
-    let i = p as usize;
+    let i = (p as i32).max(0);
     let t = p - i as f64;
+    let i = i as usize;
     if t < SNAP {
         return (i, 1.0, 0.0);
     }

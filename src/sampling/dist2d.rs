@@ -91,6 +91,15 @@ impl PiecewiseConstant2D {
     /// from x's row. Cells of zero probability are never chosen.
     #[inline]
     pub fn sample(&self, u: [f64; 2]) -> (f64, f64) {
+        let (_, x, j, dv) = self.sample_cells(u);
+        (x, (j as f64 + dv) * (self.y_max / self.ny as f64))
+    }
+
+    /// [`PiecewiseConstant2D::sample`] with the cells it draws: (x cell i,
+    /// x, y cell j, the position of y within cell j in [0, 1]); y is
+    /// `(j + dv) * y_max / ny`, which lies in cell j.
+    #[inline]
+    pub fn sample_cells(&self, u: [f64; 2]) -> (usize, f64, usize, f64) {
         let (i, x) = self.marginal.sample_cell(u[0]);
         let v = if u[1].is_finite() {
             u[1].clamp(0.0, 1.0)
@@ -112,12 +121,11 @@ impl PiecewiseConstant2D {
             0.5
         };
         let dy = self.y_max / self.ny as f64;
-        let mut y = (j as f64 + dv) * dy;
         // Stay inside cell j, as pdf will find it.
-        if self.y_cell(y) != Some(j) {
-            y = (j as f64 + 0.5) * dy;
+        if self.y_cell((j as f64 + dv) * dy) != Some(j) {
+            return (i, x, j, 0.5);
         }
-        (x, y)
+        (i, x, j, dv)
     }
 
     /// The y cell of y (None outside [0, y_max)).

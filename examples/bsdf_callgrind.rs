@@ -1,0 +1,68 @@
+//! A fixed workload of `NpfBxdf` eval, pdf and sample calls for
+//! instruction counting (repeatable on a loaded machine, unlike timings):
+//!
+//!     cargo build --release --example bsdf_callgrind
+//!     valgrind --tool=callgrind '--toggle-collect=bsdf_callgrind::run_*' \
+//!         target/release/examples/bsdf_callgrind 10
+//!     callgrind_annotate --inclusive=yes callgrind.out.* | grep run_
+//!
+//! Each `run_*` makes 1024 calls per repetition (the bench's inputs: the
+//! synthetic three-lobe model, views up to 80 degrees, pairs drawn by the
+//! sampler), so inclusive counts / (1024 x repetitions) are instructions
+//! per call. Prints a checksum of the results.
+
+use npf::bsdf::NpfBxdf;
+use npf::model::Layout;
+
+#[path = "../benches/common/bsdf_inputs.rs"]
+mod bsdf_inputs;
+use std::hint::black_box;
+
+#[inline(never)]
+fn run_eval(b: &NpfBxdf, pairs: &[([f64; 3], [f64; 3])]) -> f64 {
+    let mut acc = 0.0;
+    for &(wo, wi) in pairs {
+        acc += b.eval(black_box(wo), black_box(wi))[1];
+    }
+    acc
+}
+#[inline(never)]
+fn run_pdf(b: &NpfBxdf, pairs: &[([f64; 3], [f64; 3])]) -> f64 {
+    let mut acc = 0.0;
+    for &(wo, wi) in pairs {
+        acc += b.pdf(black_box(wo), black_box(wi));
+    }
+    acc
+}
+#[inline(never)]
+fn run_sample(b: &NpfBxdf, wos: &[[f64; 3]], us: &[[f64; 3]]) -> f64 {
+    let mut acc = 0.0;
+    for (wo, u) in wos.iter().zip(us) {
+        acc += b.sample(black_box(*wo), u[0], [u[1], u[2]]).weight[1];
+    }
+    acc
+}
+
+fn main() {
+    let b = NpfBxdf::new(npf::synth::known_factor_model(
+        Layout::default(),
+        &[0.02, 0.15, 0.5],
+    ))
+    .unwrap();
+    let bsdf_inputs::Inputs { us, wos, pairs } = bsdf_inputs::inputs(&b);
+    let reps: usize = match std::env::args().nth(1).map(|s| s.parse()) {
+        None => 20,
+        Some(Ok(r)) => r,
+        Some(Err(_)) => {
+            eprintln!("usage: bsdf_callgrind [REPETITIONS]");
+            std::process::exit(2);
+        }
+    };
+    let mut acc = 0.0;
+    for _ in 0..reps {
+        acc += run_eval(&b, &pairs);
+        acc += run_pdf(&b, &pairs);
+        acc += run_sample(&b, &wos, &us);
+    }
+    println!("{acc}");
+}
