@@ -14,8 +14,8 @@
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use super::f64x2::floor_index;
-use super::flat::{acos, FlatEval};
+use super::f64x2::{floor_index, F64x2};
+use super::flat::{acos2, FlatEval};
 use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
 use crate::sampling::{PiecewiseConstant, PiecewiseConstant2D};
@@ -310,9 +310,13 @@ impl NpfBxdf {
     /// the row below and the weight of the row above.
     #[inline(always)]
     fn selection_row(&self, cos_o: f64) -> (usize, f64) {
-        let theta = acos(cos_o.clamp(-1.0, 1.0));
-        let x = theta.to_degrees() / VIEW_MAX_DEG * (VIEW_NODES - 1) as f64;
-        let x = x.clamp(0.0, (VIEW_NODES - 1) as f64);
+        // Nodes per radian of theta_o.
+        const PER_RAD: f64 = (VIEW_NODES - 1) as f64 * 180.0 / (VIEW_MAX_DEG * PI);
+        // The branch-free arccosine (views at random angles would
+        // mispredict fdlibm's branches); a cos_o below 0 lands on the last
+        // node either way.
+        let theta = acos2(F64x2::splat(cos_o.clamp(0.0, 1.0))).lo();
+        let x = (theta * PER_RAD).clamp(0.0, (VIEW_NODES - 1) as f64);
         // x >= 0 (or NaN, 0 either way): truncation is floor, without libm.
         let k = floor_index(x).min(VIEW_NODES - 2);
         (k, x - k as f64)
