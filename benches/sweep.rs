@@ -2,7 +2,9 @@
 //! `npf::synth`, all 1.46 M cells): building the sample set
 //! (`FitSet::build`: weights, reciprocal merge, stencils, incidence) and a
 //! one-sweep fit (start plus one AWLS sweep of D, F, G, diffuse/scales and
-//! gauge), each in a one-thread and a two-thread pool.
+//! gauge), each in a one-thread and a two-thread pool; and the same
+//! one-sweep fit on the default coarse-to-fine level (`npf::coarse`, a 32nd
+//! of the samples), what the coarse level's sweeps cost against full ones.
 //!
 //! cargo bench --bench sweep
 //!
@@ -22,6 +24,13 @@ fn kernels(c: &mut Criterion) {
         alpha: 0.2,
     };
     let samples = brdf.table().samples("synthetic");
+    let factor = npf::fit::FitConfig::default().coarse[0];
+    let coarse = FitSet::build(
+        &npf::coarse::decimate(&samples, factor),
+        Layout::default(),
+        SampleOptions::default(),
+    )
+    .expect("coarse set");
     let mut g = c.benchmark_group("fit");
     g.sample_size(10);
     for threads in [1, 2] {
@@ -54,6 +63,24 @@ fn kernels(c: &mut Criterion) {
                 })
             })
         });
+        g.bench_function(
+            format!("start + 1 sweep, 1/{factor} of the samples, {threads} thread(s)"),
+            |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        Executor::new(
+                            &coarse,
+                            FitOptions {
+                                max_sweeps: 1,
+                                ..Default::default()
+                            },
+                        )
+                        .run()
+                        .expect("fit")
+                    })
+                })
+            },
+        );
     }
     g.finish();
 }

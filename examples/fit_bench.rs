@@ -4,19 +4,44 @@
 //! cosine-weighted and log RMSE, peak memory, and where the fit's time goes.
 //!
 //!     cargo run --release --example fit_bench -- DATA_DIR [--threads N] [--max-sweeps N]
+//!         [--coarse 8,2] [--coarse-tol T] [--tol T] [--save-dir DIR]
+//!
+//! `--coarse` lists the decimation factors of coarse-to-fine levels run
+//! before the full set (`npf::coarse`; `--coarse 1` is a plain fit; the
+//! default is `FitConfig::default()`'s); `--save-dir` writes each model
+//! as DIR/NAME.npfb (for `npf compare`).
 //!
 //! Each material runs in its own child process so that its peak resident
 //! memory (Linux VmHWM) is its own. Make DATA_DIR with
 //! `python3 ../shared/tools/nbrdf2merl.py ../shared/data/merl-nbrdf --out-dir DATA_DIR`.
 
+use npf::fit::FitConfig;
 use npf::loaders::MerlTable;
 use npf::metrics::compare_model;
 use npf::model::Layout;
-use npf::samples::{FitSet, SampleOptions};
-use npf::solver::{Executor, FitOptions, Stage};
+use npf::modelfile::{write, ModelFile};
+use npf::samples::SampleOptions;
+use npf::solver::{init, FitOptions, Stage};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
+
+/// The value after `--name`, if given.
+fn flag(args: &[String], name: &str) -> Option<String> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .cloned()
+}
+
+/// The fit's settings, as flags.
+struct Settings {
+    max_sweeps: usize,
+    tol: f64,
+    coarse: Vec<usize>,
+    coarse_tol: f64,
+    save_dir: Option<String>,
+}
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -32,12 +57,25 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .map(|v| v.parse::<usize>().expect("--max-sweeps N"))
         .unwrap_or(FitOptions::default().max_sweeps);
+    let d = FitConfig::default();
+    let settings = Settings {
+        max_sweeps,
+        tol: flag(&args, "--tol").map_or(d.tol, |v| v.parse().expect("--tol T")),
+        coarse: flag(&args, "--coarse").map_or(d.coarse.clone(), |v| {
+            v.split(',')
+                .map(|f| f.parse().expect("--coarse 8,2"))
+                .collect()
+        }),
+        coarse_tol: flag(&args, "--coarse-tol")
+            .map_or(d.coarse_tol, |v| v.parse().expect("--coarse-tol T")),
+        save_dir: flag(&args, "--save-dir"),
+    };
     if let Some(i) = args.iter().position(|a| a == "--one") {
         let result = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .expect("thread pool")
-            .install(|| one(Path::new(&args[i + 1]), max_sweeps));
+            .install(|| one(Path::new(&args[i + 1]), &settings));
         match result {
             Ok(line) => println!("{line}"),
             Err(e) => {
@@ -60,20 +98,29 @@ fn main() {
         .filter(|p| p.extension().is_some_and(|x| x == "binary"))
         .collect();
     files.sort();
-    println!("| material | samples fitted | load + set (s) | fit (s) | wall (s) | sweeps | converged | objective | cos RMSE | rel. cos RMSE | log RMSE | peak RSS (MB) | ms/sweep: D / F / G / d,s / gauge / extrap. |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| material | samples fitted | load + set (s) | fit (s) | wall (s) | sweeps | converged | objective | cos RMSE | rel. cos RMSE | log RMSE | peak RSS (MB) | ms/sweep: D / F / G / d,s / gauge / extrap. | coarse levels: factor x sweeps (s) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for f in files {
-        let out = Command::new(std::env::current_exe().unwrap())
-            .args([
-                "--one",
-                f.to_str().unwrap(),
-                "--threads",
-                &threads.to_string(),
-                "--max-sweeps",
-                &max_sweeps.to_string(),
-            ])
-            .output()
-            .expect("run child");
+        let coarse: Vec<String> = settings.coarse.iter().map(|f| f.to_string()).collect();
+        let mut child = Command::new(std::env::current_exe().unwrap());
+        child.args([
+            "--one",
+            f.to_str().unwrap(),
+            "--threads",
+            &threads.to_string(),
+            "--max-sweeps",
+            &max_sweeps.to_string(),
+            "--tol",
+            &settings.tol.to_string(),
+            "--coarse",
+            &coarse.join(","),
+            "--coarse-tol",
+            &settings.coarse_tol.to_string(),
+        ]);
+        if let Some(dir) = &settings.save_dir {
+            child.args(["--save-dir", dir]);
+        }
+        let out = child.output().expect("run child");
         let name = f.file_stem().unwrap().to_string_lossy();
         if out.status.success() {
             print!("| {name} {}", String::from_utf8_lossy(&out.stdout));
@@ -87,19 +134,41 @@ fn main() {
 }
 
 /// One material, in this process: returns the rest of its table row.
-fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
+fn one(path: &Path, s: &Settings) -> Result<String, String> {
     let t0 = Instant::now();
     let table = MerlTable::read(path).map_err(|e| e.to_string())?;
     let samples = table.samples(&path.display().to_string());
     drop(table);
-    let set = FitSet::build(&samples, Layout::default(), SampleOptions::default())
-        .map_err(|e| e.to_string())?;
-    let prep = t0.elapsed().as_secs_f64();
+    let read = t0.elapsed().as_secs_f64();
     let opts = FitOptions {
-        max_sweeps,
+        max_sweeps: s.max_sweeps,
+        tol: s.tol,
         ..Default::default()
     };
-    let res = Executor::new(&set, opts).run().map_err(|e| e.to_string())?;
+    let layout = Layout::default();
+    let start = init::initial_factors(layout, opts.lobes);
+    let mut quiet = |_: &npf::solver::SweepReport| {};
+    let so = SampleOptions::default();
+    let schedule = npf::coarse::Schedule {
+        factors: &s.coarse,
+        tol: s.coarse_tol,
+    };
+    let fitted = npf::coarse::fit(&samples, (layout, so), schedule, opts, start, &mut quiet)
+        .map_err(|e| e.to_string())?;
+    let (res, levels) = (fitted.result, fitted.levels);
+    // The full set is built while the coarse levels run: "load + set" ends
+    // when it is ready, "fit" is the rest.
+    let prep = read + fitted.set_seconds;
+    let fit_seconds = t0.elapsed().as_secs_f64() - prep;
+    if let Some(dir) = &s.save_dir {
+        let name = path.file_stem().unwrap().to_string_lossy();
+        let out = Path::new(dir).join(format!("{name}.npfb"));
+        let file = ModelFile {
+            model: res.model.clone(),
+            fit: None,
+        };
+        write(&out, &file, true).map_err(|e| e.to_string())?;
+    }
     let wall = t0.elapsed().as_secs_f64();
     let m = compare_model(&samples, SampleOptions::default().max_theta_deg, &res.model);
     // Mean milliseconds per sweep in each kind of stage (summed over lobes).
@@ -120,10 +189,10 @@ fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
     let n = res.history.len().max(1) as f64;
     let stages: Vec<String> = ms.iter().map(|v| format!("{:.0}", v / n)).collect();
     Ok(format!(
-        "| {} | {:.2} | {:.2} | {:.2} | {} | {} | {:.17e} | {:.3e} | {:.4} | {:.3e} | {:.0} | {} |",
-        set.len(),
+        "| {} | {:.2} | {:.2} | {:.2} | {} | {} | {:.17e} | {:.3e} | {:.4} | {:.3e} | {:.0} | {} | {} |",
+        fitted.set_len,
         prep,
-        res.seconds,
+        fit_seconds,
         wall,
         res.history.len(),
         if res.converged { "yes" } else { "no" },
@@ -132,7 +201,12 @@ fn one(path: &Path, max_sweeps: usize) -> Result<String, String> {
         m.rel_cos_rmse,
         m.log_rmse,
         peak_rss_mb().unwrap_or(f64::NAN),
-        stages.join(" / ")
+        stages.join(" / "),
+        levels
+            .iter()
+            .map(|l| format!("{} x {} ({:.2})", l.factor, l.sweeps, l.seconds))
+            .collect::<Vec<_>>()
+            .join(", ")
     ))
 }
 

@@ -6,12 +6,13 @@
 //! through here, so a model fitted by any of them is the same model.
 
 use crate::baselines::{fit_ggx, GgxParams};
+use crate::coarse::CoarseError;
 use crate::metrics::{compare_model, Metrics};
 use crate::model::Layout;
 use crate::modelfile::FitInfo;
-use crate::samples::{FitSet, SampleError, SampleOptions, Weighting};
+use crate::samples::{SampleError, SampleOptions, Weighting};
 use crate::solver::{
-    init, DiffuseKind, Executor, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
+    init, DiffuseKind, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
     INDEPENDENT_CHANNELS,
 };
 use npf_data_loaders::MeasuredSamples;
@@ -94,6 +95,13 @@ pub struct FitConfig {
     pub threads: usize,
     /// The factor model's diffuse form (docs/fitting.md).
     pub diffuse: DiffuseKind,
+    /// Coarse-to-fine levels ([`crate::coarse`]): decimation factors of the
+    /// sample sets fitted before the full one, coarsest first (empty: fit
+    /// the full set only). Factor kinds only.
+    pub coarse: Vec<usize>,
+    /// The tolerance of the decimated levels (their sweeps are cheap, so
+    /// they may run further than the full set's `tol`).
+    pub coarse_tol: f64,
 }
 
 impl Default for FitConfig {
@@ -116,9 +124,17 @@ impl Default for FitConfig {
             accelerate: o.accelerate,
             threads: 0,
             diffuse: o.diffuse,
+            // Measured on the 16 MERL tables (BENCHMARKS.md, issue 15):
+            // one level at a 32nd of the samples, run to 1e-3.
+            coarse: vec![32],
+            coarse_tol: 1e-3,
         }
     }
 }
+
+/// Accepted coarse-to-fine decimation factors (1: the level is skipped;
+/// beyond 64 a MERL table leaves too few samples per factor entry).
+pub const COARSE_FACTORS: std::ops::RangeInclusive<usize> = 1..=64;
 
 /// Fewest and most values per factor table.
 pub const NODES: std::ops::RangeInclusive<usize> = 4..=90;
@@ -294,6 +310,24 @@ impl FitConfig {
                 value: sg,
             });
         }
+        if !(self.coarse_tol >= 0.0 && self.coarse_tol.is_finite()) {
+            return Err(FitError::Range {
+                name: "coarse_tol",
+                range: "finite and non-negative".into(),
+                value: self.coarse_tol,
+            });
+        }
+        if let Some(&f) = self.coarse.iter().find(|f| !COARSE_FACTORS.contains(f)) {
+            return Err(FitError::Range {
+                name: "coarse",
+                range: format!(
+                    "a list of decimation factors {} to {}",
+                    COARSE_FACTORS.start(),
+                    COARSE_FACTORS.end()
+                ),
+                value: f as f64,
+            });
+        }
         self.fit_options().validate()?;
         Ok(())
     }
@@ -377,16 +411,20 @@ fn run_kind(
     // together, with one history.
     let factor_fit =
         |opts: FitOptions, start: Factors, observer: &mut dyn FnMut(usize, &SweepReport)| {
-            let set = FitSet::build(samples, layout, so)?;
             let mut obs = |r: &SweepReport| observer(0, r);
-            let result = Executor::new(&set, opts)
-                .start_from(start)
-                .observe(&mut obs)
-                .run()?;
+            let schedule = crate::coarse::Schedule {
+                factors: &config.coarse,
+                tol: config.coarse_tol,
+            };
+            let fitted = crate::coarse::fit(samples, (layout, so), schedule, opts, start, &mut obs)
+                .map_err(|e| match e {
+                    CoarseError::Samples(e) => FitError::Samples(e),
+                    CoarseError::Solver(e) => FitError::Solver(e),
+                })?;
             Ok::<_, FitError>(Produced {
-                result,
+                result: fitted.result,
                 ggx: None,
-                set_len: Some(set.len()),
+                set_len: Some(fitted.set_len),
             })
         };
     match config.model {

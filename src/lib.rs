@@ -124,6 +124,7 @@ pub mod baselines;
 pub mod bsdf;
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod coarse;
 pub mod energy;
 pub mod error;
 pub mod evaluation;

@@ -1011,6 +1011,8 @@ fn fit(
         threads,
         // Lambertian, the default (`npf fit --diffuse` chooses others).
         diffuse: d.diffuse,
+        coarse: d.coarse.clone(),
+        coarse_tol: d.coarse_tol,
     };
     for (name, v) in [
         ("epsilon", config.epsilon),

@@ -66,6 +66,13 @@ pub struct FitFlags {
     /// The diffuse term's form (factor model; see docs/fitting.md).
     #[arg(long, value_enum, default_value_t = defaults().diffuse)]
     pub diffuse: DiffuseKind,
+    /// Coarse-to-fine: decimation factors of the sample sets fitted before
+    /// the full one, coarsest first (e.g. 8 or 16,4; 1: no coarse level).
+    #[arg(long, value_delimiter = ',', default_values_t = defaults().coarse)]
+    pub coarse: Vec<usize>,
+    /// Tolerance of the coarse levels.
+    #[arg(long, default_value_t = defaults().coarse_tol)]
+    pub coarse_tol: f64,
 }
 
 impl FitFlags {
@@ -92,6 +99,8 @@ impl FitFlags {
             accelerate: base.accelerate && !self.no_accelerate,
             threads: self.threads,
             diffuse: self.diffuse,
+            coarse: self.coarse.clone(),
+            coarse_tol: self.coarse_tol,
         }
     }
 }

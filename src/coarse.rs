@@ -1,0 +1,171 @@
+//! Coarse-to-fine fits: sweeps on a decimated sample set first, then on all
+//! samples from where they ended.
+//!
+//! A sweep costs time in proportion to the samples, but the 822 parameters
+//! are pinned down by far fewer than the ~0.5 M merged MERL samples, so
+//! most of a fit's descent (the early sweeps that move every table a lot)
+//! can run on a fixed pseudo-random fraction of them. The full set then
+//! starts close to its optimum and needs a few sweeps only. Each level is
+//! an ordinary [`Executor`] run (monotone, deterministic for any thread
+//! count); the final model and history are the last (full) level's, so its
+//! objective is the true one. The decimated levels' objectives are on their
+//! own, smaller scale and are not in the history.
+
+use crate::model::Layout;
+use crate::samples::{FitSet, SampleError, SampleOptions};
+use crate::solver::{Executor, Factors, FitOptions, FitResult, Observer, SolverError};
+use npf_data_loaders::MeasuredSamples;
+
+/// Every `factor`-th sample on average, chosen by a hash of the index (not a
+/// stride: MERL's order is a regular grid, and a stride would alias with
+/// it). The same samples for any thread count and run. `factor` <= 1 keeps
+/// all.
+pub fn decimate(samples: &MeasuredSamples, factor: usize) -> MeasuredSamples {
+    let keep = |i: usize| factor <= 1 || mix(i as u64) % factor as u64 == 0;
+    MeasuredSamples {
+        source: samples.source.clone(),
+        isotropic: samples.isotropic,
+        samples: samples
+            .samples
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| keep(i))
+            .map(|(_, s)| *s)
+            .collect(),
+        missing: samples.missing,
+    }
+}
+
+/// splitmix64's finaliser: a fixed, well-mixed hash.
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A decimated level runs only if it keeps at least this many (valid,
+/// unmerged) samples per model parameter; otherwise it is skipped.
+pub const MIN_SAMPLES_PER_PARAMETER: usize = 16;
+
+/// What the decimated levels did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoarseLevel {
+    /// The decimation factor.
+    pub factor: usize,
+    /// Samples the level's set held.
+    pub samples: usize,
+    /// Sweeps run on it.
+    pub sweeps: usize,
+    /// Whether its tolerance (not the sweep limit) ended it.
+    pub converged: bool,
+    /// Seconds: building its set and fitting it.
+    pub seconds: f64,
+}
+
+/// Why a coarse-to-fine fit could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum CoarseError {
+    /// A level's sample set could not be built.
+    #[error(transparent)]
+    Samples(#[from] SampleError),
+    /// The solver refused the options or the start.
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+}
+
+/// The decimated levels to run before the full set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Schedule<'a> {
+    /// Decimation factors, coarsest first (0 and 1 are skipped).
+    pub factors: &'a [usize],
+    /// The levels' tolerance (their sweeps are cheap, so they may run
+    /// further than the full set's).
+    pub tol: f64,
+}
+
+/// A coarse-to-fine fit's result.
+#[derive(Clone, Debug)]
+pub struct CoarseFit {
+    /// The full set's fit (its history, objective and model).
+    pub result: FitResult,
+    /// What each decimated level did, coarsest first.
+    pub levels: Vec<CoarseLevel>,
+    /// Samples in the full set.
+    pub set_len: usize,
+    /// Seconds until the full set was built (it is built while the
+    /// decimated levels run).
+    pub set_seconds: f64,
+}
+
+/// Fit `samples` on `layout` from `start`: first on each decimated set of
+/// `schedule` (a level with fewer than [`MIN_SAMPLES_PER_PARAMETER`] is
+/// skipped), each level
+/// starting where the previous one ended, then on the full set. The full
+/// set is built while the decimated levels run (the build's serial parts
+/// leave a core free). The decimated levels use `opts` with the
+/// schedule's tolerance; the observer sees the full set's sweeps only.
+pub fn fit(
+    samples: &MeasuredSamples,
+    (layout, so): (Layout, SampleOptions),
+    schedule: Schedule,
+    opts: FitOptions,
+    start: Factors,
+    observer: &mut dyn Observer,
+) -> Result<CoarseFit, CoarseError> {
+    let t0 = std::time::Instant::now();
+    let (set, coarse) = rayon::join(
+        || {
+            let set = FitSet::build(samples, layout, so);
+            (set, t0.elapsed().as_secs_f64())
+        },
+        || levels_fit(samples, (layout, so), schedule, opts, start),
+    );
+    let (set, set_seconds) = (set.0?, set.1);
+    let (start, levels) = coarse?;
+    let result = Executor::new(&set, opts)
+        .start_from(start)
+        .observe(observer)
+        .run()?;
+    Ok(CoarseFit {
+        result,
+        levels,
+        set_len: set.len(),
+        set_seconds,
+    })
+}
+
+/// The decimated levels of [`fit`], in turn: the factors they end at.
+fn levels_fit(
+    samples: &MeasuredSamples,
+    (layout, so): (Layout, SampleOptions),
+    schedule: Schedule,
+    opts: FitOptions,
+    mut start: Factors,
+) -> Result<(Factors, Vec<CoarseLevel>), CoarseError> {
+    let mut done = Vec::new();
+    let level_opts = FitOptions {
+        tol: schedule.tol,
+        ..opts
+    };
+    for &factor in schedule.factors.iter().filter(|&&f| f > 1) {
+        let t = std::time::Instant::now();
+        let kept = decimate(samples, factor);
+        // Too few samples per parameter and the level's optimum is not
+        // the full set's: a start from it would cost full sweeps, not save them.
+        if kept.samples.len() < MIN_SAMPLES_PER_PARAMETER * layout.param_count(opts.lobes) {
+            continue;
+        }
+        let small = FitSet::build(&kept, layout, so)?;
+        let r = Executor::new(&small, level_opts).start_from(start).run()?;
+        done.push(CoarseLevel {
+            factor,
+            samples: small.len(),
+            sweeps: r.history.len(),
+            converged: r.converged,
+            seconds: t.elapsed().as_secs_f64(),
+        });
+        start = r.factors;
+    }
+    Ok((start, done))
+}

@@ -1,0 +1,151 @@
+//! Coarse-to-fine fits (`npf::coarse`): the decimated set is a fixed
+//! fraction of the samples, the full level keeps the monotone objective and
+//! the thread-count independence, and the result is as good as a plain fit.
+
+use npf::coarse::{decimate, fit, Schedule};
+use npf::loaders::MeasuredSamples;
+use npf::model::Layout;
+use npf::reconstruct::to_merl;
+use npf::samples::{FitSet, SampleOptions};
+use npf::solver::{init, Executor, FitOptions, FitResult, SweepReport};
+use npf::synth::{known_factor_model, GgxLambert};
+
+#[path = "common/monotone.rs"]
+mod monotone;
+use monotone::assert_stages_monotone;
+
+fn samples() -> MeasuredSamples {
+    let brdf = GgxLambert {
+        kd: [0.05, 0.08, 0.12],
+        f0: [0.95, 0.64, 0.54],
+        alpha: 0.15,
+    };
+    let mut s = brdf.table().samples("ggx-lambert");
+    // A sixth of the grid keeps the tests quick; still ~250 k samples.
+    s.samples = s.samples.into_iter().step_by(6).collect();
+    s
+}
+
+fn coarse_fit(s: &MeasuredSamples, levels: &[usize], opts: FitOptions) -> FitResult {
+    let so = SampleOptions::default();
+    let layout = Layout::default();
+    let start = init::initial_factors(layout, opts.lobes);
+    let mut quiet = |_: &SweepReport| {};
+    let schedule = Schedule {
+        factors: levels,
+        tol: 1e-3,
+    };
+    let f = fit(s, (layout, so), schedule, opts, start, &mut quiet).unwrap();
+    assert_eq!(f.levels.len(), levels.iter().filter(|&&f| f > 1).count());
+    for l in &f.levels {
+        assert!(l.sweeps >= 1 && l.samples > 0, "{l:?}");
+    }
+    f.result
+}
+
+#[test]
+fn decimation_keeps_a_fixed_fraction_and_is_repeatable() {
+    let truth = known_factor_model(Layout::default(), &[0.05, 0.2, 0.5]);
+    let s = to_merl(&truth).samples("known");
+    assert_eq!(decimate(&s, 1).samples, s.samples);
+    for factor in [4usize, 16, 32] {
+        let d = decimate(&s, factor);
+        let expect = s.samples.len() as f64 / factor as f64;
+        let got = d.samples.len() as f64;
+        assert!(
+            (got - expect).abs() < 0.02 * expect,
+            "factor {factor}: {got} of {}",
+            s.samples.len()
+        );
+        assert_eq!(decimate(&s, factor).samples, d.samples);
+        // Every theta_h row of the grid keeps samples (a stride could alias).
+        let rows: std::collections::BTreeSet<i64> = d
+            .samples
+            .iter()
+            .map(|x| (x.angles.theta_h.to_degrees() * 4.0).round() as i64)
+            .collect();
+        let all: std::collections::BTreeSet<i64> = s
+            .samples
+            .iter()
+            .map(|x| (x.angles.theta_h.to_degrees() * 4.0).round() as i64)
+            .collect();
+        assert!(
+            rows.len() * 10 >= all.len() * 9,
+            "{} of {}",
+            rows.len(),
+            all.len()
+        );
+    }
+}
+
+#[test]
+fn full_level_is_monotone_and_thread_independent() {
+    let s = samples();
+    let opts = FitOptions {
+        max_sweeps: 4,
+        tol: 0.0,
+        trace_stages: true,
+        ..Default::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| coarse_fit(&s, &[8], opts))
+    };
+    let (a, b) = (run(1), run(2));
+    assert_stages_monotone(&a, "coarse-to-fine");
+    assert_eq!(a.objective.to_bits(), b.objective.to_bits());
+    assert_eq!(a.factors.d, b.factors.d);
+    assert_eq!(a.factors.g, b.factors.g);
+    assert_eq!(a.factors.f, b.factors.f);
+}
+
+/// After the same number of full-set sweeps, the fit started from the
+/// coarse level's end is better than the plain fit (the coarse sweeps cost
+/// an eighth of a full one each).
+#[test]
+fn coarse_start_is_ahead_after_equal_full_sweeps() {
+    let s = samples();
+    let opts = FitOptions {
+        max_sweeps: 6,
+        tol: 0.0,
+        ..Default::default()
+    };
+    let set = FitSet::build(&s, Layout::default(), SampleOptions::default()).unwrap();
+    let plain = Executor::new(&set, opts).run().unwrap();
+    let coarse = coarse_fit(&s, &[8], opts);
+    eprintln!(
+        "after 6 full sweeps: plain {:e}, coarse-to-fine {:e}",
+        plain.objective, coarse.objective
+    );
+    assert_eq!(coarse.history.len(), plain.history.len());
+    assert!(coarse.objective < plain.objective);
+}
+
+/// A set too small for a level (fewer than 16 samples per parameter after
+/// decimation) skips it: the fit is exactly the plain one.
+#[test]
+fn too_small_a_level_is_skipped() {
+    let mut s = samples();
+    s.samples = s.samples.into_iter().step_by(20).collect();
+    let opts = FitOptions {
+        max_sweeps: 3,
+        tol: 0.0,
+        ..Default::default()
+    };
+    let so = SampleOptions::default();
+    let layout = Layout::default();
+    let start = init::initial_factors(layout, opts.lobes);
+    let mut quiet = |_: &SweepReport| {};
+    let schedule = Schedule {
+        factors: &[32],
+        tol: 1e-3,
+    };
+    let f = fit(&s, (layout, so), schedule, opts, start, &mut quiet).unwrap();
+    assert!(f.levels.is_empty());
+    let set = FitSet::build(&s, layout, so).unwrap();
+    let plain = Executor::new(&set, opts).run().unwrap();
+    assert_eq!(f.result.objective.to_bits(), plain.objective.to_bits());
+}
