@@ -94,6 +94,10 @@ pub struct FitConfig {
     pub threads: usize,
     /// The factor model's diffuse form (docs/fitting.md).
     pub diffuse: DiffuseKind,
+    /// Joint Gauss-Newton steps between sweeps (`solver::gauss_newton`):
+    /// `None` uses them on anisotropic layouts only (where AWLS alone
+    /// leaves blended lobes slowly: docs/anisotropic.md), `Some` forces.
+    pub gauss_newton: Option<bool>,
 }
 
 impl Default for FitConfig {
@@ -116,6 +120,7 @@ impl Default for FitConfig {
             accelerate: o.accelerate,
             threads: 0,
             diffuse: o.diffuse,
+            gauss_newton: None,
         }
     }
 }
@@ -245,6 +250,7 @@ impl FitConfig {
             d_monotone_from_deg: self.d_monotone_from,
             channel_mask: FitOptions::default().channel_mask,
             diffuse: self.diffuse,
+            gauss_newton: self.gauss_newton.unwrap_or(false),
         }
     }
 
@@ -391,13 +397,17 @@ fn run_kind(
         };
     match config.model {
         ModelKind::Factor => {
-            let opts = config.fit_options();
+            let opts = FitOptions {
+                gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
+                ..config.fit_options()
+            };
             factor_fit(opts, init::initial_factors(layout, opts.lobes), observer)
         }
         ModelKind::IndependentG => {
             let opts = FitOptions {
                 lobes: 3,
                 channel_mask: INDEPENDENT_CHANNELS,
+                gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
                 ..config.fit_options()
             };
             let alpha = init::start_alphas(1)[0];
