@@ -69,7 +69,7 @@ fn stencil(axis: Axis, theta: f64) -> (usize, [f64; 4]) {
     match axis {
         Axis::SqrtAngle { n } => linear(x.sqrt() * n as f64, n),
         Axis::Uniform { n } => linear(x * n as f64, n),
-        Axis::Squared { n } => linear(axis.coord(theta), n),
+        Axis::Squared { n } | Axis::Closed { n } => linear(axis.coord(theta), n),
         Axis::CatmullRom { n } => catmull_rom(x * (n - 1) as f64, n),
     }
 }
