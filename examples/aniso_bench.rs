@@ -7,9 +7,9 @@
 //! the analytic BRDF, and fit vs the interpolated table. Peak memory is the
 //! process's (Linux VmHWM) at the end.
 //!
-//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--tol T] [--images DIR] [--only NAME] [--d-nodes N] [--d-axis A] [--g-axis A]
+//!     cargo run --release --example aniso_bench -- [--threads N] [--max-sweeps N] [--tol T] [--images DIR] [--only NAME] [--d-nodes N] [--d-axis A] [--g-axis A] [--gauss-newton on|off]
 //!
-//! `--d-axis uniform|sqrt|squared` and `--g-axis catmull-rom|uniform` swap the
+//! `--d-axis uniform|sqrt|squared` and `--g-axis catmull-rom|uniform|closed` swap the
 //! theta axis of D or G (same node counts, so still 2010 parameters):
 //! the measurements behind `Layout::anisotropic()`'s choice.
 //!
@@ -18,17 +18,25 @@
 //! times 48 phi nodes, G and F as in `Layout::anisotropic()`.
 //!
 //! With --images, writes DIR/NAME.png: analytic reference | fit | difference (x8).
+//!
+//! For the GGX materials a last column renders the analytic BRDF sampled
+//! on the layout: D, G and F at their nodes, s = ks / 4, d = kd / pi (the
+//! model's formula is the GGX's, so only the tables' resolution and
+//! interpolation separate it from the analytic BRDF): how close the layout
+//! can come by point samples alone.
 
 use npf::bsdf::NpfBxdf;
 use npf::cli::png::encode_png;
 use npf::evaluation::numeric_psnr;
 use npf::fit::{fit, FitConfig};
 use npf::grid::{Axis, Grid};
+use npf::microfacet::schlick;
 use npf::model::Layout;
+use npf::model::{Lobe, Model};
 use npf::render::{difference_rgb8, psnr, render, RenderOptions};
 use npf::samples::FitSet;
-use npf::solver::Executor;
-use npf::synth_aniso::catalogue;
+use npf::solver::{Executor, FitOptions};
+use npf::synth_aniso::{aniso_ggx_d, aniso_ggx_g1, catalogue, AnalyticBrdf, AnalyticLobe};
 use std::time::Instant;
 
 fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
@@ -56,6 +64,9 @@ fn main() {
     if let Some(t) = arg(&args, "--tol") {
         config.tol = t;
     }
+    if let Some(g) = arg::<String>(&args, "--gauss-newton") {
+        config.gauss_newton = Some(g == "on");
+    }
     let d_nodes: Option<usize> = arg(&args, "--d-nodes");
     let d_axis: Option<String> = arg(&args, "--d-axis");
     let g_axis: Option<String> = arg(&args, "--g-axis");
@@ -64,7 +75,8 @@ fn main() {
         "sqrt" => Axis::SqrtAngle { n },
         "squared" => Axis::Squared { n },
         "catmull-rom" => Axis::CatmullRom { n },
-        other => panic!("unknown axis {other} (uniform, sqrt, squared, catmull-rom)"),
+        "closed" => Axis::Closed { n },
+        other => panic!("unknown axis {other} (uniform, sqrt, squared, closed, catmull-rom)"),
     };
     let mut layout = Layout::anisotropic();
     if let Some(n) = d_nodes {
@@ -78,8 +90,8 @@ fn main() {
     }
     let custom = layout != Layout::anisotropic();
     let opts = RenderOptions::default();
-    println!("| material | fit s | CPU s | sweeps | num. PSNR dB | render PSNR fit vs analytic | table interp. vs analytic | fit vs table interp. |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| material | fit s | CPU s | sweeps | num. PSNR dB | render PSNR fit vs analytic | table interp. vs analytic | fit vs table interp. | analytic on the layout vs analytic |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     let mut fit_vs_analytic = Vec::new();
     let (mut beats, mut total_secs, mut total_cpu) = (0usize, 0.0, 0.0);
     for m in catalogue() {
@@ -98,7 +110,13 @@ fn main() {
                     .num_threads(threads)
                     .build()
                     .expect("pool")
-                    .install(|| Executor::new(&set, config.fit_options()).run())
+                    .install(|| {
+                        let opts = FitOptions {
+                            gauss_newton: config.gauss_newton.unwrap_or(true),
+                            ..config.fit_options()
+                        };
+                        Executor::new(&set, opts).run()
+                    })
                     .expect("fit")
             }
         };
@@ -112,12 +130,16 @@ fn main() {
         let p_fa = psnr(&img_ref, &img_fit).unwrap();
         let p_ta = psnr(&img_ref, &img_tab).unwrap();
         let p_ft = psnr(&img_tab, &img_fit).unwrap();
+        let p_la = sampled_on(&m, layout).map_or("-".to_string(), |model| {
+            let b = NpfBxdf::new(model).expect("valid model");
+            format!("{:.2}", psnr(&img_ref, &render(opts, &b)).unwrap())
+        });
         fit_vs_analytic.push((p_fa, m.name.clone()));
         beats += usize::from(p_fa >= p_ta);
         total_secs += secs;
         total_cpu += cpu;
         println!(
-            "| {} | {secs:.2} | {cpu:.2} | {} | {num:.2} | {p_fa:.2} | {p_ta:.2} | {p_ft:.2} |",
+            "| {} | {secs:.2} | {cpu:.2} | {} | {num:.2} | {p_fa:.2} | {p_ta:.2} | {p_ft:.2} | {p_la} |",
             m.name,
             result.history.len()
         );
@@ -158,6 +180,51 @@ fn main() {
                 .map(str::to_string)
         });
     println!("peak memory: {}", hwm.unwrap_or_else(|| "n/a".into()));
+}
+
+/// A GGX material's analytic factors sampled at the layout's nodes (None
+/// for other materials).
+fn sampled_on(m: &AnalyticBrdf, layout: Layout) -> Option<Model> {
+    let on = |grid: Grid, f: &dyn Fn(f64, f64) -> f64| -> Vec<f32> {
+        (0..grid.len())
+            .map(|k| {
+                let (t, p) = grid.node(k);
+                f(t, p) as f32
+            })
+            .collect()
+    };
+    let mut lobes = Vec::new();
+    let mut f0s = Vec::new();
+    for l in &m.lobes {
+        let AnalyticLobe::Ggx {
+            ax,
+            ay,
+            tangent,
+            ks,
+            f0,
+        } = *l
+        else {
+            return None;
+        };
+        lobes.push(Lobe {
+            s: ks.map(|k| (k / 4.0) as f32),
+            d: on(layout.d, &|t, p| aniso_ggx_d(t.cos(), p - tangent, ax, ay)),
+            g: on(layout.g, &|t, p| aniso_ggx_g1(t.cos(), p - tangent, ax, ay)),
+        });
+        f0s.push(f0);
+    }
+    // One F per channel is shared by the lobes: only single-Fresnel materials.
+    if f0s.windows(2).any(|w| w[0] != w[1]) {
+        return None;
+    }
+    let fresnel = f0s[0].map(|f0| on(layout.f, &|t, _| schlick(f0, t.cos())));
+    Some(Model {
+        layout,
+        diffuse: m.kd.map(|k| (k / std::f64::consts::PI) as f32),
+        diffuse_form: Default::default(),
+        fresnel,
+        lobes,
+    })
 }
 
 /// User + system CPU seconds of this process so far (all threads; Linux

@@ -181,7 +181,8 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
                 Stage::G(_) | Stage::SmoothG(_) => 2,
                 Stage::DiffuseAndScales | Stage::DiffuseForm => 3,
                 Stage::Gauge => 4,
-                Stage::Extrapolate => 5,
+                // The trials between sweeps (Gauss-Newton: anisotropic fits only).
+                Stage::Extrapolate | Stage::GaussNewton => 5,
             };
             ms[k] += s.seconds * 1e3;
         }

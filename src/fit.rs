@@ -102,6 +102,10 @@ pub struct FitConfig {
     /// The tolerance of the decimated levels (their sweeps are cheap, so
     /// they may run further than the full set's `tol`).
     pub coarse_tol: f64,
+    /// Joint Gauss-Newton steps between sweeps (`solver::gauss_newton`):
+    /// `None` uses them on anisotropic layouts only (where AWLS alone
+    /// leaves blended lobes slowly: docs/anisotropic.md), `Some` forces.
+    pub gauss_newton: Option<bool>,
 }
 
 impl Default for FitConfig {
@@ -128,6 +132,7 @@ impl Default for FitConfig {
             // one level at a 32nd of the samples, run to 1e-3.
             coarse: vec![32],
             coarse_tol: 1e-3,
+            gauss_newton: None,
         }
     }
 }
@@ -261,6 +266,7 @@ impl FitConfig {
             d_monotone_from_deg: self.d_monotone_from,
             channel_mask: FitOptions::default().channel_mask,
             diffuse: self.diffuse,
+            gauss_newton: self.gauss_newton.unwrap_or(false),
         }
     }
 
@@ -429,13 +435,17 @@ fn run_kind(
         };
     match config.model {
         ModelKind::Factor => {
-            let opts = config.fit_options();
+            let opts = FitOptions {
+                gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
+                ..config.fit_options()
+            };
             factor_fit(opts, init::initial_factors(layout, opts.lobes), observer)
         }
         ModelKind::IndependentG => {
             let opts = FitOptions {
                 lobes: 3,
                 channel_mask: INDEPENDENT_CHANNELS,
+                gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
                 ..config.fit_options()
             };
             let alpha = init::start_alphas(1)[0];

@@ -257,6 +257,7 @@ fn axis_code(a: Axis) -> (u8, u16) {
         Axis::Uniform { n } => (1, n as u16),
         Axis::CatmullRom { n } => (2, n as u16),
         Axis::Squared { n } => (3, n as u16),
+        Axis::Closed { n } => (4, n as u16),
     }
 }
 
@@ -267,6 +268,7 @@ fn axis_from(code: u8, n: u16) -> Option<Axis> {
         1 => Some(Axis::Uniform { n }),
         2 => Some(Axis::CatmullRom { n }),
         3 => Some(Axis::Squared { n }),
+        4 => Some(Axis::Closed { n }),
         _ => None,
     }
 }

@@ -5,7 +5,7 @@ use npf::loaders::MerlTable;
 use npf::modelfile;
 use npf::synth::GgxLambert;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
 use common::{npf, s, stderr};

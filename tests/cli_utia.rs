@@ -3,7 +3,7 @@
 
 use npf::synth_aniso::catalogue;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
 use common::npf;

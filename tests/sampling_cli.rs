@@ -4,7 +4,6 @@ use npf::model::Layout;
 use npf::modelfile::{self, ModelFile};
 use npf::synth::known_factor_model;
 use std::path::{Path, PathBuf};
-use std::process::Output;
 
 mod common;
 use common::{npf, stderr};

@@ -648,6 +648,7 @@ impl PyModel {
                 npf::grid::Axis::Uniform { .. } => "uniform",
                 npf::grid::Axis::CatmullRom { .. } => "catmull_rom",
                 npf::grid::Axis::Squared { .. } => "squared",
+                npf::grid::Axis::Closed { .. } => "closed",
             };
             axis.set_item("kind", kind)?;
             if let Some(p) = grid.phi {
@@ -1013,6 +1014,7 @@ fn fit(
         diffuse: d.diffuse,
         coarse: d.coarse.clone(),
         coarse_tol: d.coarse_tol,
+        gauss_newton: d.gauss_newton,
     };
     for (name, v) in [
         ("epsilon", config.epsilon),

@@ -93,7 +93,9 @@ impl FlatTable {
         match self.axis {
             Axis::SqrtAngle { n } => self.lerp(linear(x.sqrt() * self.scale, n)),
             Axis::Uniform { n } => self.lerp(linear(x * self.scale, n)),
-            Axis::Squared { n } => self.lerp(linear(self.axis.coord(theta), n)),
+            Axis::Squared { n } | Axis::Closed { n } => {
+                self.lerp(linear(self.axis.coord(theta), n))
+            }
             Axis::CatmullRom { .. } => {
                 // floor, at most n - 2 (the last interval; x <= 1).
                 let p = x * self.scale;

@@ -60,6 +60,10 @@ pub struct FitFlags {
     /// Disable the extrapolation step between sweeps (plain AWLS).
     #[arg(long)]
     pub no_accelerate: bool,
+    /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
+    /// anisotropic tables only).
+    #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new())]
+    pub gauss_newton: Option<bool>,
     /// Worker threads (0: all cores). Results are identical for any count.
     #[arg(long, default_value_t = defaults().threads)]
     pub threads: usize,
@@ -101,6 +105,7 @@ impl FitFlags {
             diffuse: self.diffuse,
             coarse: self.coarse.clone(),
             coarse_tol: self.coarse_tol,
+            gauss_newton: self.gauss_newton,
         }
     }
 }

@@ -32,6 +32,13 @@ pub enum Axis {
         /// Number of nodes.
         n: usize,
     },
+    /// n nodes spanning [0, pi/2] inclusively (the Catmull-Rom axis's
+    /// nodes), linear between them: a G axis whose last node is the
+    /// horizon, so the tail tie can take it to 0 there.
+    Closed {
+        /// Number of nodes.
+        n: usize,
+    },
     /// n Catmull-Rom control points spanning [0, pi/2] inclusively,
     /// theta_k = k/(n-1) * pi/2, with pbrt's end conditions.
     CatmullRom {
@@ -47,6 +54,7 @@ impl Axis {
             Axis::SqrtAngle { n }
             | Axis::Uniform { n }
             | Axis::Squared { n }
+            | Axis::Closed { n }
             | Axis::CatmullRom { n } => n,
         }
     }
@@ -59,9 +67,18 @@ impl Axis {
     /// Slots of this axis's stencils: 2 for the linear axes, 4 for Catmull-Rom.
     pub fn stencil_width(&self) -> usize {
         match self {
-            Axis::SqrtAngle { .. } | Axis::Uniform { .. } | Axis::Squared { .. } => 2,
+            Axis::SqrtAngle { .. }
+            | Axis::Uniform { .. }
+            | Axis::Squared { .. }
+            | Axis::Closed { .. } => 2,
             Axis::CatmullRom { .. } => 4,
         }
+    }
+
+    /// Whether a 2-D table on this axis holds one value on its pole row
+    /// (`Grid::extend`): the G axes, whose node 0 is one direction.
+    pub fn pole_tied(&self) -> bool {
+        matches!(self, Axis::CatmullRom { .. } | Axis::Closed { .. })
     }
 
     /// The angle (radians) of node k.
@@ -75,7 +92,7 @@ impl Axis {
             Axis::SqrtAngle { n } => (p / n as f64).powi(2) * FRAC_PI_2,
             Axis::Uniform { n } => p / n as f64 * FRAC_PI_2,
             Axis::Squared { n } => squared_span(n) * (p / squared_last(n)).powi(2) * FRAC_PI_2,
-            Axis::CatmullRom { n } => p / (n - 1) as f64 * FRAC_PI_2,
+            Axis::CatmullRom { n } | Axis::Closed { n } => p / (n - 1) as f64 * FRAC_PI_2,
         }
     }
 
@@ -86,7 +103,7 @@ impl Axis {
             Axis::SqrtAngle { n } => x.sqrt() * n as f64,
             Axis::Uniform { n } => x * n as f64,
             Axis::Squared { n } => (x / squared_span(n)).sqrt() * squared_last(n),
-            Axis::CatmullRom { n } => x * (n - 1) as f64,
+            Axis::CatmullRom { n } | Axis::Closed { n } => x * (n - 1) as f64,
         }
     }
 
@@ -98,9 +115,10 @@ impl Axis {
     /// The interpolation stencil of an angle.
     pub fn stencil(&self, theta: f64) -> Stencil {
         match *self {
-            Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::Squared { n } => {
-                linear_stencil(self.coord(theta), n)
-            }
+            Axis::SqrtAngle { n }
+            | Axis::Uniform { n }
+            | Axis::Squared { n }
+            | Axis::Closed { n } => linear_stencil(self.coord(theta), n),
             Axis::CatmullRom { n } => catmull_rom_stencil(self.coord(theta), n),
         }
     }
@@ -342,6 +360,19 @@ mod tests {
     }
 
     #[test]
+    fn closed_axis_spans_the_horizon_linearly() {
+        let axis = Axis::Closed { n: 6 };
+        assert_eq!(axis.node(5), FRAC_PI_2);
+        assert!((axis.node(1) - 18f64.to_radians()).abs() < 1e-15);
+        // Linear between nodes, the last node read at the horizon.
+        let values = [1.0, 0.9, 0.8, 0.6, 0.4, 0.0];
+        let t = 81f64.to_radians();
+        assert!((axis.eval(&values, t) - 0.2).abs() < 1e-12);
+        assert_eq!(axis.eval(&values, FRAC_PI_2), 0.0);
+        assert!(axis.pole_tied() && !Axis::Uniform { n: 6 }.pole_tied());
+    }
+
+    #[test]
     fn phi_axis_wraps_and_reproduces_nodes() {
         let axis = PhiAxis { n: 48 };
         for k in 0..48 {
@@ -367,6 +398,7 @@ mod tests {
             Axis::SqrtAngle { n: 90 },
             Axis::Uniform { n: 45 },
             Axis::Squared { n: 6 },
+            Axis::Closed { n: 6 },
             Axis::CatmullRom { n: 30 },
         ] {
             let q = axis.quadrature_weights(|t| t.cos() * t.sin());

@@ -105,7 +105,7 @@ impl Grid {
 
     /// A theta stencil (possibly folded, see `samples`) extended over phi:
     /// unchanged for a 1-D table, the tensor product with the phi stencil
-    /// otherwise, except on the pole row of a Catmull-Rom (G) axis (theta
+    /// otherwise, except on the pole row of a Catmull-Rom or closed (G) axis (theta
     /// node 0 at theta = 0): that is one direction whatever phi, so it is
     /// one value, the row's first entry (its other entries are never read).
     /// Without this the 48 pole values of G differ, fitted only through
@@ -122,7 +122,7 @@ impl Grid {
                 let ps = p.stencil(phi);
                 let mut out = Stencil::empty(0);
                 for (i, w) in theta_stencil.entries() {
-                    if i == 0 && matches!(self.theta, Axis::CatmullRom { .. }) {
+                    if i == 0 && self.theta.pole_tied() {
                         out.push(0, w);
                     } else {
                         for (j, wj) in ps.entries() {

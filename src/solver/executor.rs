@@ -33,6 +33,8 @@ pub enum Stage {
     Gauge,
     /// The extrapolation trial (accepted or not).
     Extrapolate,
+    /// The joint Gauss-Newton trial (accepted or not).
+    GaussNewton,
 }
 
 /// One stage's cost, and the objective after it when stages are traced.
@@ -65,6 +67,8 @@ pub struct SweepReport {
     pub smoothing_reverted: usize,
     /// Whether the extrapolated point was kept.
     pub extrapolated: bool,
+    /// Whether a joint Gauss-Newton step was kept.
+    pub gauss_newton: bool,
     /// Lobes that were dead (all s = 0) and got a fresh D this sweep.
     pub revived: usize,
 }
@@ -186,6 +190,9 @@ impl<'a> Executor<'a> {
         let mut prev = initial;
         let mut prev_factors: Option<Factors> = None;
         let mut beta = 1.0;
+        let mut damping = super::gauss_newton::Damping::default();
+        // Sweeps until the next Gauss-Newton trial, and the current back-off.
+        let (mut gn_wait, mut gn_backoff) = (0usize, 1usize);
         let mut history = Vec::new();
         let mut converged = false;
         let mut first_revival = vec![true; st.factors.lobes()];
@@ -273,6 +280,39 @@ impl<'a> Executor<'a> {
                     }
                     rec.mark(Stage::Extrapolate, set, &st);
                 }
+            }
+            // The caches are fresh here (every path above leaves them so).
+            let mut newton = false;
+            if opts.gauss_newton && gn_wait > 0 {
+                gn_wait -= 1;
+            } else if opts.gauss_newton {
+                let project = |t: &mut Factors, x: &Factors| {
+                    apply_mask(t, &mask);
+                    for (d, xd) in t.d.iter_mut().zip(&x.d) {
+                        project_d(d, xd, x.layout.d.n_phi(), monotone_from);
+                    }
+                };
+                let (e_new, stats) =
+                    super::gauss_newton::step(set, &mut st, &opts, e, &mut damping, &project);
+                // Worth its passes only where it gains more than the sweep
+                // before it did (near a minimum, where AWLS crawls); until
+                // then it is tried at doubling intervals.
+                let als_gain = if prev > 0.0 { (prev - e) / prev } else { 0.0 };
+                let gain = if e > 0.0 { (e - e_new) / e } else { 0.0 };
+                if stats.accepted && gain > als_gain {
+                    gn_backoff = 1;
+                } else {
+                    gn_wait = gn_backoff;
+                    gn_backoff = (2 * gn_backoff).min(16);
+                }
+                if stats.accepted {
+                    e = e_new;
+                    newton = true;
+                    gauge_rescale(set, &mut st, &measure);
+                }
+                rec.mark(Stage::GaussNewton, set, &st);
+            }
+            if opts.accelerate {
                 prev_factors = Some(st.factors.clone());
             }
             let rel = if prev > 0.0 { (prev - e) / prev } else { 0.0 };
@@ -285,6 +325,7 @@ impl<'a> Executor<'a> {
                 g_passes,
                 smoothing_reverted: reverted,
                 extrapolated,
+                gauss_newton: newton,
                 revived,
             };
             for o in self.observers.iter_mut() {
@@ -428,22 +469,27 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
         d: (0..lobes)
             .map(|m| {
                 let mut d = tab(&x.d[m], &old.d[m]);
-                // D and G trade off freely where G is nearly 0 (D G G is all
-                // the data sees); extrapolating along that valley would grow
-                // D without bound, so the step may not raise D's maximum.
-                let top = x.d[m].iter().cloned().fold(0.0, f64::max);
-                for v in d.iter_mut() {
-                    *v = v.min(top);
-                }
-                let np = x.layout.d.n_phi();
-                for k in (monotone_from.max(1).saturating_mul(np)).min(d.len())..d.len() {
-                    d[k] = d[k].min(d[k - np]);
-                }
+                project_d(&mut d, &x.d[m], x.layout.d.n_phi(), monotone_from);
                 d
             })
             .collect(),
         g: (0..lobes).map(|m| tab(&x.g[m], &old.g[m])).collect(),
         f: std::array::from_fn(|c| tab(&x.f[c], &old.f[c])),
+    }
+}
+
+/// A trial D table (from an extrapolation or a joint step away from the
+/// current table `x`) made admissible: D and G trade off freely where G is
+/// nearly 0 (D G G is all the data sees), and a step along that valley
+/// would grow D without bound, so it may not raise D's maximum; the tail
+/// past `monotone_from` is made non-increasing along theta (`np` phi columns).
+fn project_d(d: &mut [f64], x: &[f64], np: usize, monotone_from: usize) {
+    let top = x.iter().cloned().fold(0.0, f64::max);
+    for v in d.iter_mut() {
+        *v = v.min(top);
+    }
+    for k in (monotone_from.max(1).saturating_mul(np)).min(d.len())..d.len() {
+        d[k] = d[k].min(d[k - np]);
     }
 }
 

@@ -17,6 +17,7 @@ pub mod diffuse;
 pub mod executor;
 pub mod g_update;
 pub mod gauge;
+pub mod gauss_newton;
 pub mod init;
 pub mod state;
 pub mod updates;
@@ -97,6 +98,10 @@ pub struct FitOptions {
     /// the objective falls.
     #[serde(default)]
     pub diffuse: DiffuseKind,
+    /// After each sweep, try a joint damped Gauss-Newton step over every
+    /// factor ([`gauss_newton`]), kept only if it lowers the objective.
+    #[serde(default)]
+    pub gauss_newton: bool,
 }
 
 fn all_channels() -> [[bool; 3]; MAX_LOBES] {
@@ -123,6 +128,7 @@ impl Default for FitOptions {
             d_monotone_from_deg: Some(60.0),
             channel_mask: all_channels(),
             diffuse: DiffuseKind::Lambert,
+            gauss_newton: false,
         }
     }
 }

@@ -194,7 +194,7 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
                 s += "    for (int k = 0; k < 4; k++) {\n";
                 // The pole row of a Catmull-Rom (G) axis is one direction
                 // whatever phi: one value, the row's first (Grid::extend).
-                if matches!(grid.theta, Axis::CatmullRom { .. }) {
+                if grid.theta.pole_tied() {
                     s += &format!(
                         "        if (ti[k] == 0) {{ if (tw[k] != 0.0) v += tw[k] * @{table}[base]; continue; }}\n"
                     );
@@ -431,7 +431,7 @@ INLINE REAL @pdf_s(REAL wox, REAL woy, REAL woz, REAL wix, REAL wiy, REAL wiz) {
 fn theta_stencil(axis: Axis) -> String {
     let snap = lit(SNAP);
     match axis {
-        Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::Squared { n } => {
+        Axis::SqrtAngle { n } | Axis::Uniform { n } | Axis::Squared { n } | Axis::Closed { n } => {
             if n == 1 {
                 return "    ti[0] = 0; tw[0] = 1.0;\n".into();
             }
@@ -443,6 +443,7 @@ fn theta_stencil(axis: Axis) -> String {
                     lit(n as f64 / (n - 1) as f64),
                     lit((n - 1) as f64)
                 ),
+                Axis::Closed { .. } => format!("x * {}", lit((n - 1) as f64)),
                 _ => format!("x * {}", lit(n as f64)),
             };
             format!(
