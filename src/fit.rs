@@ -94,6 +94,14 @@ pub struct FitConfig {
     pub threads: usize,
     /// The factor model's diffuse form (docs/fitting.md).
     pub diffuse: DiffuseKind,
+    /// Grazing taper (degrees): past it a sample's weight falls linearly to
+    /// 0 at the horizon ([`SampleOptions::taper_from_deg`]); `None`: none.
+    pub taper_from: Option<f64>,
+    /// The factor model's masking-shadowing form (docs/fitting.md).
+    pub masking: crate::model::Masking,
+    /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to
+    /// the model ([`crate::model::Compensation`]).
+    pub compensate: bool,
 }
 
 impl Default for FitConfig {
@@ -116,6 +124,9 @@ impl Default for FitConfig {
             accelerate: o.accelerate,
             threads: 0,
             diffuse: o.diffuse,
+            taper_from: s.taper_from_deg,
+            masking: o.masking,
+            compensate: false,
         }
     }
 }
@@ -229,6 +240,7 @@ impl FitConfig {
             epsilon: self.epsilon,
             max_theta_deg: self.max_theta,
             max_theta_h_deg: self.max_theta_h,
+            taper_from_deg: self.taper_from,
         }
     }
 
@@ -245,6 +257,7 @@ impl FitConfig {
             d_monotone_from_deg: self.d_monotone_from,
             channel_mask: FitOptions::default().channel_mask,
             diffuse: self.diffuse,
+            masking: self.masking,
         }
     }
 
@@ -284,6 +297,13 @@ impl FitConfig {
                     value: v,
                 });
             }
+        }
+        if let Some(t) = self.taper_from.filter(|t| !(0.0..90.0).contains(t)) {
+            return Err(FitError::Range {
+                name: "taper_from",
+                range: "in [0, 90) degrees".into(),
+                value: t,
+            });
         }
         // A Gaussian wider than the table only averages it, at a cost that
         // grows with the width.
@@ -389,7 +409,7 @@ fn run_kind(
                 set_len: Some(set.len()),
             })
         };
-    match config.model {
+    let mut produced = match config.model {
         ModelKind::Factor => {
             let opts = config.fit_options();
             factor_fit(opts, init::initial_factors(layout, opts.lobes), observer)
@@ -424,7 +444,14 @@ fn run_kind(
                 set_len: None,
             })
         }
+    }?;
+    if config.compensate {
+        // After the fit: the measured data already hold multiple
+        // scattering, so the term is the fitted lobes' own, not refitted.
+        let model = &mut produced.result.model;
+        model.compensation = Some(crate::energy::coupled::compensation(model));
     }
+    Ok(produced)
 }
 
 /// Fit `config.model` in the calling thread pool, without provenance or
@@ -519,6 +546,15 @@ pub fn selection(config: &FitConfig, ggx: Option<&GgxParams>) -> serde_json::Val
         "model": config.model.name(),
         "effective_parameters": config.effective_params(),
     });
+    if let Some(t) = config.taper_from {
+        v["taper_from_deg"] = t.into();
+    }
+    if !config.masking.is_separable() {
+        v["masking"] = config.masking.name().into();
+    }
+    if config.compensate {
+        v["compensated"] = true.into();
+    }
     if let Some(p) = ggx {
         v["ggx"] = serde_json::to_value(p).unwrap_or_default();
     }

@@ -541,6 +541,8 @@ impl PyModel {
             layout: npf::model::Layout::isotropic(n),
             diffuse: d[0].map(|x| x as f32),
             diffuse_form: Default::default(),
+            masking: Default::default(),
+            compensation: None,
             fresnel: [f32s(&f[0]), f32s(&f[1]), f32s(&f[2])],
             lobes: s
                 .iter()
@@ -1011,6 +1013,9 @@ fn fit(
         threads,
         // Lambertian, the default (`npf fit --diffuse` chooses others).
         diffuse: d.diffuse,
+        // The remaining options (grazing taper, masking, compensation) at
+        // the library's defaults.
+        ..d
     };
     for (name, v) in [
         ("epsilon", config.epsilon),

@@ -66,6 +66,20 @@ pub struct FitFlags {
     /// The diffuse term's form (factor model; see docs/fitting.md).
     #[arg(long, value_enum, default_value_t = defaults().diffuse)]
     pub diffuse: DiffuseKind,
+    /// Grazing taper: past this angle (degrees) a sample's weight falls
+    /// linearly to 0 at the horizon; use with a cut-off near 90, e.g.
+    /// `--max-theta 89 --taper-from 80` (see docs/fitting.md).
+    #[arg(long)]
+    pub taper_from: Option<f64>,
+    /// Masking-shadowing form: separable G(theta_i) G(theta_o) (the
+    /// paper's) or height-correlated G2 = 1 / (1 + Lambda_i + Lambda_o).
+    #[arg(long, value_enum, default_value_t = defaults().masking)]
+    pub masking: crate::model::Masking,
+    /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to the
+    /// model (eval, sampler and .bsdf/.binary exports use it; the shader
+    /// exports refuse it).
+    #[arg(long)]
+    pub compensate: bool,
 }
 
 impl FitFlags {
@@ -92,6 +106,9 @@ impl FitFlags {
             accelerate: base.accelerate && !self.no_accelerate,
             threads: self.threads,
             diffuse: self.diffuse,
+            taper_from: self.taper_from,
+            masking: self.masking,
+            compensate: self.compensate,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! the energy-coupled diffuse form (Kelemen / Kulla-Conty, seed `001`).
 
 use crate::bsdf::half_vector_quadrature;
-use crate::model::{DiffuseForm, Model, ALBEDO_NODES};
+use crate::model::{Compensation, DiffuseForm, Model, ALBEDO_NODES};
 use std::f64::consts::FRAC_PI_2;
 
 /// Strata of the half-vector quadrature in u and phi_h. Coarser than the
@@ -84,6 +84,7 @@ fn coupled_form_of(e: [Vec<f64>; 3]) -> DiffuseForm {
 /// averages) and the per-channel scale 1/pi times the colour factor.
 pub fn multiple_scattering(model: &Model) -> (DiffuseForm, [f64; 3]) {
     let mut white = model.clone();
+    white.compensation = None;
     for f in white.fresnel.iter_mut() {
         f.iter_mut().for_each(|v| *v = 1.0);
     }
@@ -112,4 +113,18 @@ pub fn multiple_scattering(model: &Model) -> (DiffuseForm, [f64; 3]) {
         colour / std::f64::consts::PI
     });
     (form, scale)
+}
+
+/// [`multiple_scattering`] as the model's own [`Compensation`] term (what
+/// `npf fit --compensate` stores).
+pub fn compensation(model: &Model) -> Compensation {
+    let (form, scale) = multiple_scattering(model);
+    let DiffuseForm::EnergyCoupled { albedo, average } = form else {
+        unreachable!("multiple_scattering returns the coupled form")
+    };
+    Compensation {
+        albedo,
+        average,
+        scale: scale.map(|v| v as f32),
+    }
 }

@@ -171,6 +171,7 @@ impl<'a> Executor<'a> {
         }
         let mask = opts.channel_mask;
         apply_mask(&mut factors, &mask);
+        factors.masking = opts.masking;
         let monotone_from = d_monotone_from(set, opts.d_monotone_from_deg);
         let mut st = State::new(set, factors);
         let mut scratch = Scratch::new(set.len());
@@ -444,6 +445,7 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
             .collect(),
         g: (0..lobes).map(|m| tab(&x.g[m], &old.g[m])).collect(),
         f: std::array::from_fn(|c| tab(&x.f[c], &old.f[c])),
+        masking: x.masking,
     }
 }
 
@@ -497,6 +499,7 @@ mod tests {
             d: vec![d],
             g: vec![g],
             f: std::array::from_fn(|_| vec![1.0; 30]),
+            masking: Default::default(),
         };
         let mut d_old = vec![1.0; 30];
         let mut d_new = vec![1.0; 30];

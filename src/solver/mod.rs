@@ -15,6 +15,7 @@
 
 pub mod diffuse;
 pub mod executor;
+pub mod g2_update;
 pub mod g_update;
 pub mod gauge;
 pub mod init;
@@ -97,6 +98,10 @@ pub struct FitOptions {
     /// the objective falls.
     #[serde(default)]
     pub diffuse: DiffuseKind,
+    /// How each lobe combines G at the two directions: separable (the
+    /// paper's) or height-correlated, whose G pass is [`g2_update`].
+    #[serde(default)]
+    pub masking: crate::model::Masking,
 }
 
 fn all_channels() -> [[bool; 3]; MAX_LOBES] {
@@ -123,6 +128,7 @@ impl Default for FitOptions {
             d_monotone_from_deg: Some(60.0),
             channel_mask: all_channels(),
             diffuse: DiffuseKind::Lambert,
+            masking: crate::model::Masking::Separable,
         }
     }
 }
