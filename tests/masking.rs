@@ -11,6 +11,7 @@ use npf::loaders::MeasuredSamples;
 use npf::metrics::compare_model;
 use npf::model::{Layout, Masking, Model};
 use npf::modelfile::{self, ModelFile};
+use npf::samples::{FitSet, SampleOptions};
 use npf::solver::{FitOptions, FitResult};
 use npf::synth::known_factor_model;
 
@@ -186,4 +187,48 @@ fn white_furnace_of_a_compensate_fit_is_one_within_1e_3() {
     }
     eprintln!("compensated fit: worst |albedo - 1| = {worst:.2e}");
     assert!(worst < 1e-3, "worst |albedo - 1| = {worst}");
+}
+
+/// The grazing taper: weights past it fall linearly to 0 at the horizon
+/// (the same samples are kept), and a bad start angle is refused.
+#[test]
+fn grazing_taper_weights_fall_linearly_past_its_start() {
+    let truth = known_factor_model(Layout::default(), &[0.35]);
+    let s = samples(&truth, 7);
+    let plain = SampleOptions {
+        max_theta_deg: 89.0,
+        ..Default::default()
+    };
+    let taper = SampleOptions {
+        taper_from_deg: Some(80.0),
+        ..plain
+    };
+    let (a, b) = (
+        FitSet::build(&s, Layout::default(), plain).unwrap(),
+        FitSet::build(&s, Layout::default(), taper).unwrap(),
+    );
+    assert_eq!(a.len(), b.len());
+    let mut tapered = 0;
+    for j in 0..a.len() {
+        let theta = (b.dirs[j][0].max(b.dirs[j][1]) as f64).to_degrees();
+        let want = if theta > 80.0 {
+            (90.0 - theta) / 10.0
+        } else {
+            1.0
+        };
+        for c in 0..3 {
+            let ratio = b.w[j][c] / a.w[j][c];
+            assert!(
+                (ratio - want).abs() < 1e-5,
+                "theta {theta}: {ratio} vs {want}"
+            );
+        }
+        tapered += (theta > 80.0) as usize;
+    }
+    assert!(tapered > 0);
+    let bad = SampleOptions {
+        taper_from_deg: Some(90.0),
+        ..plain
+    };
+    assert!(FitSet::build(&s, Layout::default(), bad).is_err());
 }
