@@ -100,7 +100,9 @@ pub struct FitConfig {
     /// The factor model's masking-shadowing form (docs/fitting.md).
     pub masking: crate::model::Masking,
     /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to
-    /// the model ([`crate::model::Compensation`]).
+    /// the model ([`crate::model::Compensation`]); for energy-conservation
+    /// studies, not appearance fits (docs/fitting.md: it adds energy
+    /// measured data do not have).
     pub compensate: bool,
 }
 
