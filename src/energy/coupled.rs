@@ -103,7 +103,11 @@ pub fn multiple_scattering(model: &Model) -> (DiffuseForm, [f64; 3]) {
                 let t = (k as f64 + 0.5) / nf as f64 * FRAC_PI_2;
                 2.0 * f[k] as f64 * t.cos() * t.sin() * FRAC_PI_2 / nf as f64
             })
-            .sum::<f64>();
+            .sum::<f64>()
+            // A Fresnel average cannot exceed 1; a fitted F (gauge F(0) = 1,
+            // rising at grazing) can, and would make the denominator
+            // below vanish.
+            .min(1.0);
         let e = average[c] as f64;
         let colour = if e > 0.0 {
             favg * e / (1.0 - favg * (1.0 - e)).max(1e-6)
