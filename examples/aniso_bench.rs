@@ -222,6 +222,8 @@ fn sampled_on(m: &AnalyticBrdf, layout: Layout) -> Option<Model> {
         layout,
         diffuse: m.kd.map(|k| (k / std::f64::consts::PI) as f32),
         diffuse_form: Default::default(),
+        masking: Default::default(),
+        compensation: None,
         fresnel,
         lobes,
     })

@@ -71,6 +71,8 @@ fn main() {
             layout,
             diffuse: iso.diffuse,
             diffuse_form: Default::default(),
+            masking: Default::default(),
+            compensation: None,
             fresnel: iso.fresnel.clone(),
             lobes: alphas
                 .iter()

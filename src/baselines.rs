@@ -54,6 +54,8 @@ pub fn independent_g_model(per_channel: &[Model; 3]) -> Model {
         layout,
         diffuse,
         diffuse_form: Default::default(),
+        masking: Default::default(),
+        compensation: None,
         fresnel,
         lobes,
     }

@@ -106,6 +106,16 @@ pub struct FitConfig {
     /// `None` uses them on anisotropic layouts only (where AWLS alone
     /// leaves blended lobes slowly: docs/anisotropic.md), `Some` forces.
     pub gauss_newton: Option<bool>,
+    /// Grazing taper (degrees): past it a sample's weight falls linearly to
+    /// 0 at the horizon ([`SampleOptions::taper_from_deg`]); `None`: none.
+    pub taper_from: Option<f64>,
+    /// The factor model's masking-shadowing form (docs/fitting.md).
+    pub masking: crate::model::Masking,
+    /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to
+    /// the model ([`crate::model::Compensation`]); for energy-conservation
+    /// studies, not appearance fits (docs/fitting.md: it adds energy
+    /// measured data do not have).
+    pub compensate: bool,
 }
 
 impl Default for FitConfig {
@@ -133,6 +143,9 @@ impl Default for FitConfig {
             coarse: vec![32],
             coarse_tol: 1e-3,
             gauss_newton: None,
+            taper_from: s.taper_from_deg,
+            masking: o.masking,
+            compensate: false,
         }
     }
 }
@@ -250,6 +263,7 @@ impl FitConfig {
             epsilon: self.epsilon,
             max_theta_deg: self.max_theta,
             max_theta_h_deg: self.max_theta_h,
+            taper_from_deg: self.taper_from,
         }
     }
 
@@ -267,6 +281,7 @@ impl FitConfig {
             channel_mask: FitOptions::default().channel_mask,
             diffuse: self.diffuse,
             gauss_newton: self.gauss_newton.unwrap_or(false),
+            masking: self.masking,
         }
     }
 
@@ -306,6 +321,13 @@ impl FitConfig {
                     value: v,
                 });
             }
+        }
+        if let Some(t) = self.taper_from.filter(|t| !(0.0..90.0).contains(t)) {
+            return Err(FitError::Range {
+                name: "taper_from",
+                range: "in [0, 90) degrees".into(),
+                value: t,
+            });
         }
         // A Gaussian wider than the table only averages it, at a cost that
         // grows with the width.
@@ -433,7 +455,7 @@ fn run_kind(
                 set_len: Some(fitted.set_len),
             })
         };
-    match config.model {
+    let mut produced = match config.model {
         ModelKind::Factor => {
             let opts = FitOptions {
                 gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
@@ -472,7 +494,14 @@ fn run_kind(
                 set_len: None,
             })
         }
+    }?;
+    if config.compensate {
+        // After the fit: the measured data already hold multiple
+        // scattering, so the term is the fitted lobes' own, not refitted.
+        let model = &mut produced.result.model;
+        model.compensation = Some(crate::energy::coupled::compensation(model));
     }
+    Ok(produced)
 }
 
 /// Fit `config.model` in the calling thread pool, without provenance or
@@ -567,6 +596,15 @@ pub fn selection(config: &FitConfig, ggx: Option<&GgxParams>) -> serde_json::Val
         "model": config.model.name(),
         "effective_parameters": config.effective_params(),
     });
+    if let Some(t) = config.taper_from {
+        v["taper_from_deg"] = t.into();
+    }
+    if !config.masking.is_separable() {
+        v["masking"] = config.masking.name().into();
+    }
+    if config.compensate {
+        v["compensated"] = true.into();
+    }
     if let Some(p) = ggx {
         v["ggx"] = serde_json::to_value(p).unwrap_or_default();
     }

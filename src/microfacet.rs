@@ -131,6 +131,8 @@ impl GgxParams {
             layout,
             diffuse: self.kd.map(|k| (k / PI) as f32),
             diffuse_form: Default::default(),
+            masking: Default::default(),
+            compensation: None,
             fresnel: self
                 .f0
                 .map(|f0| tabulate(layout.f, &|t| schlick(f0, t.cos()))),

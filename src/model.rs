@@ -2,6 +2,10 @@
 //!
 //! rho_C(wi, wo) = d_C b_C(wi, wo) + sum_m s_C^m D^m(theta_h) F_C(theta_d) G^m(theta_i) G^m(theta_o) / (cos theta_i cos theta_o)
 //!
+//! (optionally with the height-correlated G2 of the two G values in place
+//! of their product, [`Masking`], and Kulla-Conty's multiple-scattering
+//! term added, [`Compensation`]).
+//!
 //! D^m and G^m are shared by the three channels; F_C, d_C and s_C^m are per
 //! channel. b_C is the diffuse form's directional factor ([`DiffuseForm`]):
 //! 1 for the paper's Lambertian term. Values are BRDF values in 1/sr (MERL's physical units). A model
@@ -305,6 +309,115 @@ pub fn oren_nayar(sigma: f64, theta_i: f64, theta_o: f64, cos_dphi: f64) -> f64 
     a + b * cos_dphi.max(0.0) * alpha.sin() * beta.tan()
 }
 
+/// How a lobe's masking-shadowing combines its tabulated G of the two
+/// directions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Masking {
+    /// G(theta_i) G(theta_o): the paper's separable (uncorrelated) form.
+    #[default]
+    Separable,
+    /// Height-correlated Smith: G2 = 1 / (1 + Lambda(theta_i) +
+    /// Lambda(theta_o)) with Lambda = 1 / G - 1 from the tabulated G taken
+    /// as G1 (clamped to [0, 1]), i.e. G2 = Gi Go / (Gi + Go - Gi Go).
+    /// G's scale is then no longer traded with s: G is a true G1 <= 1.
+    HeightCorrelated,
+}
+
+impl Masking {
+    /// Whether this is the separable form (what older files hold).
+    pub fn is_separable(&self) -> bool {
+        *self == Masking::Separable
+    }
+
+    /// The short name (as the CLI spells it).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Masking::Separable => "separable",
+            Masking::HeightCorrelated => "height-correlated",
+        }
+    }
+
+    /// The lobe's masking-shadowing from its G values at the two directions.
+    #[inline]
+    pub fn product(self, gi: f64, go: f64) -> f64 {
+        match self {
+            Masking::Separable => gi * go,
+            Masking::HeightCorrelated => height_correlated(gi, go),
+        }
+    }
+}
+
+/// G2 = 1 / (1 + Lambda_i + Lambda_o) with Lambda = 1 / G1 - 1, G1 clamped
+/// to [0, 1]; 0 when either G1 is 0 (the horizon).
+#[inline]
+pub fn height_correlated(gi: f64, go: f64) -> f64 {
+    let (a, b) = (gi.clamp(0.0, 1.0), go.clamp(0.0, 1.0));
+    if a <= 0.0 || b <= 0.0 {
+        0.0
+    } else {
+        a * b / (a + b - a * b)
+    }
+}
+
+/// Kulla-Conty's multiple-scattering term of a model's own lobes (seed
+/// `001`; [`crate::energy::coupled::multiple_scattering`]): f_ms,C =
+/// scale_C (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - Eavg_C), E_C the
+/// lobes' directional albedo with F = 1, clamped to [0, 1]. Added to the
+/// model's value when present; with F = 1 and no diffuse term the
+/// compensated model then reflects all it receives (white furnace).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Compensation {
+    /// E_C on uniform theta nodes over [0, pi/2] (linear between), per channel.
+    pub albedo: [Vec<f32>; 3],
+    /// Eavg_C = 2 int E_C(mu) mu dmu.
+    pub average: [f32; 3],
+    /// Per-channel scale: Kulla-Conty's colour factor over pi.
+    pub scale: [f32; 3],
+}
+
+impl Compensation {
+    /// f_ms per channel at elevations theta_i, theta_o (radians).
+    #[inline]
+    pub fn value(&self, theta_i: f64, theta_o: f64) -> [f64; 3] {
+        std::array::from_fn(|c| {
+            let t = &self.albedo[c];
+            let (ei, eo) = (table_at(t, theta_i), table_at(t, theta_o));
+            self.scale[c] as f64 * (1.0 - ei) * (1.0 - eo)
+                / (1.0 - self.average[c] as f64).max(1e-3)
+        })
+    }
+
+    /// f_ms's directional albedo at theta_o: pi scale (1 - E(theta_o))
+    /// (the integral of (1 - E) cos over the hemisphere is pi (1 - Eavg),
+    /// which cancels the denominator).
+    pub fn albedo_at(&self, theta_o: f64) -> [f64; 3] {
+        std::array::from_fn(|c| {
+            std::f64::consts::PI * self.scale[c] as f64 * (1.0 - table_at(&self.albedo[c], theta_o))
+        })
+    }
+
+    fn validate(&self) -> Result<(), ModelError> {
+        let ok = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
+        if self.albedo.iter().any(|t| t.len() < 2)
+            || !self
+                .albedo
+                .iter()
+                .flatten()
+                .chain(&self.average)
+                .all(|&v| ok(v))
+            || !self.scale.iter().all(|v| v.is_finite() && *v >= 0.0)
+        {
+            return Err(ModelError::DiffuseForm(
+                "compensation tables need >= 2 nodes with values in [0, 1] and a non-negative scale"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// A fitted model: layout, diffuse term, Fresnel tables and lobes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Model {
@@ -316,6 +429,12 @@ pub struct Model {
     /// written for Lambertian models, whose JSON is what it always was).
     #[serde(default, skip_serializing_if = "DiffuseForm::is_lambert")]
     pub diffuse_form: DiffuseForm,
+    /// How each lobe combines G at the two directions (absent: separable).
+    #[serde(default, skip_serializing_if = "Masking::is_separable")]
+    pub masking: Masking,
+    /// Kulla-Conty multiple scattering added to the value (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compensation: Option<Compensation>,
     /// F_C(theta_d), one table per channel.
     pub fresnel: [Vec<f32>; 3],
     /// The specular lobes.
@@ -383,6 +502,8 @@ impl Model {
             layout,
             diffuse,
             diffuse_form: DiffuseForm::Lambert,
+            masking: Masking::Separable,
+            compensation: None,
             fresnel,
             lobes,
         };
@@ -417,6 +538,9 @@ impl Model {
             size(format!("lobe {m} G"), lobe.g.len(), l.g.len())?;
         }
         self.diffuse_form.validate()?;
+        if let Some(c) = &self.compensation {
+            c.validate()?;
+        }
         let params = self.params();
         if let Some(i) = params.iter().position(|v| !v.is_finite()) {
             return Err(ModelError::NotFinite(i));
@@ -455,22 +579,44 @@ impl Model {
     }
 
     /// The diffuse term d_C b_C at elevations theta_i, theta_o and azimuth
-    /// difference cosine `cos_dphi` (only Oren-Nayar reads it).
+    /// difference cosine `cos_dphi` (only Oren-Nayar reads it), plus the
+    /// multiple-scattering term when the model is compensated (both are
+    /// smooth, cosine-sampled parts of the value).
     #[inline]
     pub fn diffuse_term(&self, theta_i: f64, theta_o: f64, cos_dphi: f64) -> [f64; 3] {
         let d = self.diffuse.map(f64::from);
-        if let DiffuseForm::Lambert = self.diffuse_form {
-            return d;
+        let v = if let DiffuseForm::Lambert = self.diffuse_form {
+            d
+        } else {
+            let b = self.diffuse_form.factor(theta_i, theta_o, cos_dphi);
+            std::array::from_fn(|c| d[c] * b[c])
+        };
+        match &self.compensation {
+            None => v,
+            Some(k) => {
+                let ms = k.value(theta_i, theta_o);
+                std::array::from_fn(|c| v[c] + ms[c])
+            }
         }
-        let b = self.diffuse_form.factor(theta_i, theta_o, cos_dphi);
-        std::array::from_fn(|c| d[c] * b[c])
     }
 
     /// The diffuse term's directional albedo (integral of d_C b_C cos
     /// theta_i) at view angle theta_o: exact for the Lambertian and
     /// energy-coupled forms, Oren-Nayar's A term only (a lower bound) for
-    /// that form. Samplers weigh their diffuse component by it.
+    /// that form; plus the multiple-scattering term's albedo when the model
+    /// is compensated. Samplers weigh their diffuse component by it.
     pub fn diffuse_albedo(&self, theta_o: f64) -> [f64; 3] {
+        let a = self.diffuse_form_albedo(theta_o);
+        match &self.compensation {
+            None => a,
+            Some(k) => {
+                let ms = k.albedo_at(theta_o);
+                std::array::from_fn(|c| a[c] + ms[c])
+            }
+        }
+    }
+
+    fn diffuse_form_albedo(&self, theta_o: f64) -> [f64; 3] {
         let d = self.diffuse.map(|v| std::f64::consts::PI * v as f64);
         match &self.diffuse_form {
             DiffuseForm::Lambert => d,
@@ -519,9 +665,10 @@ impl Model {
             fs.apply_f32(&self.fresnel[1]),
             fs.apply_f32(&self.fresnel[2]),
         ];
+        let masking = self.masking;
         for (m, lobe) in self.lobes.iter().enumerate() {
-            let spec =
-                ds.apply_f32(&lobe.d) * gis.apply_f32(&lobe.g) * gos.apply_f32(&lobe.g) / (ci * co);
+            let g = masking.product(gis.apply_f32(&lobe.g), gos.apply_f32(&lobe.g));
+            let spec = ds.apply_f32(&lobe.d) * g / (ci * co);
             term(m, std::array::from_fn(|c| lobe.s[c] as f64 * f[c] * spec));
         }
     }
@@ -585,6 +732,8 @@ mod tests {
             layout,
             diffuse: [0.1, 0.2, 0.3],
             diffuse_form: Default::default(),
+            masking: Default::default(),
+            compensation: None,
             fresnel: [vec![1.0; n], vec![0.5; n], vec![0.25; n]],
             lobes: (0..lobes)
                 .map(|m| Lobe {
@@ -632,6 +781,8 @@ mod tests {
             layout,
             diffuse: [0.1; 3],
             diffuse_form: Default::default(),
+            masking: Default::default(),
+            compensation: None,
             fresnel: [vec![1.0; nf], vec![1.0; nf], vec![1.0; nf]],
             lobes: vec![Lobe {
                 s: [1.0; 3],

@@ -24,7 +24,11 @@
 //! files earlier versions wrote), 1 energy-coupled, 2 Oren-Nayar; forms 1
 //! and 2 append a trailer after the parameters: u32 count, then that many
 //! f32 (energy-coupled: E_R, E_G, E_B tables of n values each, then the three
-//! averages, count = 3 n + 3; Oren-Nayar: sigma, count = 1).
+//! averages, count = 3 n + 3; Oren-Nayar: sigma, count = 1). Bit 0x100 of
+//! that word marks height-correlated masking (`masking` in JSON); bit 0x200
+//! a compensation term (`compensation`), whose own trailer block (u32
+//! count, then E_R, E_G, E_B of n values, three averages, three scales:
+//! 3 n + 6) follows the diffuse form's.
 //!
 //! Both forms hold the model's f32 parameters exactly, so writing and
 //! reading gives back the same model bit for bit.
@@ -37,7 +41,7 @@
 
 use crate::grid::{Axis, Grid, PhiAxis};
 use crate::metrics::Metrics;
-use crate::model::{DiffuseForm, Layout, Model, ModelError};
+use crate::model::{Compensation, DiffuseForm, Layout, Masking, Model, ModelError};
 use byteorder::{ByteOrder, LittleEndian as LE};
 use npf_data_loaders::atomic::write_bytes_atomic;
 use npf_data_loaders::LoadError;
@@ -142,6 +146,8 @@ fn conventions() -> serde_json::Value {
         },
         "gauge": "max of G over constrained control points = 1; 2 pi * integral over theta_h <= 60 deg of D cos sin = 1; F_C(0) = 1",
         "diffuse_form": "b_C: lambert 1; energy-coupled (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - average_C), E_C linear on uniform theta nodes over [0, pi/2]; oren-nayar A + B max(0, cos(phi_i - phi_o)) sin(max theta) tan(min theta), A = 1 - sigma^2 / (2 (sigma^2 + 0.33)), B = 0.45 sigma^2 / (sigma^2 + 0.09); absent: lambert",
+        "masking": "separable (absent): G^m(theta_i) G^m(theta_o); height-correlated: G2 = Gi Go / (Gi + Go - Gi Go) with Gi, Go the tabulated G clamped to [0, 1], in place of the product",
+        "compensation": "optional Kulla-Conty term added to rho: scale_C (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - average_C), E_C linear on uniform theta nodes over [0, pi/2]",
         "below_horizon": "the BRDF is 0 when cos theta_i <= 0 or cos theta_o <= 0"
     })
 }
@@ -306,15 +312,40 @@ pub fn to_binary(model: &Model) -> Vec<u8> {
         }
         DiffuseForm::OrenNayar { sigma } => (2, vec![*sigma]),
     };
-    LE::write_u16(&mut out[6..8], code);
-    if code != 0 {
+    let mut flags = code;
+    if !model.masking.is_separable() {
+        flags |= HEIGHT_CORRELATED;
+    }
+    LE::write_u16(&mut out[6..8], flags);
+    let mut block = |values: &[f32]| {
         let at = out.len();
-        out.resize(at + 4 + 4 * extra.len(), 0);
-        LE::write_u32(&mut out[at..at + 4], extra.len() as u32);
-        LE::write_f32_into(&extra, &mut out[at + 4..]);
+        out.resize(at + 4 + 4 * values.len(), 0);
+        LE::write_u32(&mut out[at..at + 4], values.len() as u32);
+        LE::write_f32_into(values, &mut out[at + 4..]);
+    };
+    if code != 0 {
+        block(&extra);
+    }
+    if let Some(k) = &model.compensation {
+        let v: Vec<f32> = k
+            .albedo
+            .iter()
+            .flatten()
+            .chain(&k.average)
+            .chain(&k.scale)
+            .copied()
+            .collect();
+        block(&v);
+        flags |= COMPENSATED;
+        LE::write_u16(&mut out[6..8], flags);
     }
     out
 }
+
+/// Bit of the binary header's form word: height-correlated masking.
+const HEIGHT_CORRELATED: u16 = 0x100;
+/// Bit of the binary header's form word: a compensation trailer follows.
+const COMPENSATED: u16 = 0x200;
 
 /// The diffuse form of a binary file's code and trailer.
 fn diffuse_from(code: u16, extra: &[f32], path: &Path) -> Result<DiffuseForm, ModelFileError> {
@@ -387,24 +418,34 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
     check_size(path, layout, lobes)?;
     let count = LE::read_u32(&bytes[header - 4..header]) as usize;
     let mut expected = header as u64 + 4 * count as u64;
-    let code = LE::read_u16(&bytes[6..8]);
-    let mut extra = Vec::new();
-    if code != 0 {
+    let flags = LE::read_u16(&bytes[6..8]);
+    if flags & !(0xff | HEIGHT_CORRELATED | COMPENSATED) != 0 {
+        return Err(invalid(
+            path,
+            format!("unknown model form flags {flags:#x}"),
+        ));
+    }
+    let code = flags & 0xff;
+    // The trailer blocks: the diffuse form's (if not Lambert), then the
+    // compensation term's (if flagged); each u32 count, then f32 values.
+    let mut blocks: Vec<Vec<f32>> = Vec::new();
+    for _ in 0..(code != 0) as usize + (flags & COMPENSATED != 0) as usize {
         let at = expected as usize;
         if bytes.len() < at + 4 {
             return Err(invalid(
                 path,
-                "diffuse-form trailer missing (truncated file)",
+                "diffuse-form or compensation trailer missing (truncated file)",
             ));
         }
         let n = LE::read_u32(&bytes[at..at + 4]) as usize;
         if n > MAX_PARAMS {
-            return Err(invalid(path, format!("diffuse-form trailer of {n} values")));
+            return Err(invalid(path, format!("model trailer of {n} values")));
         }
         expected += 4 + 4 * n as u64;
-        if bytes.len() as u64 == expected {
-            extra = vec![0f32; n];
-            LE::read_f32_into(&bytes[at + 4..], &mut extra);
+        if bytes.len() as u64 >= expected {
+            let mut v = vec![0f32; n];
+            LE::read_f32_into(&bytes[at + 4..expected as usize], &mut v);
+            blocks.push(v);
         }
     }
     if bytes.len() as u64 != expected {
@@ -419,8 +460,30 @@ pub fn from_binary(bytes: &[u8], path: &Path) -> Result<Model, ModelFileError> {
     let mut params = vec![0f32; count];
     LE::read_f32_into(&bytes[header..header + 4 * count], &mut params);
     let mut model = Model::from_params(layout, lobes, &params).map_err(|e| bad_model(path, e))?;
+    let mut blocks = blocks.into_iter();
     if code != 0 {
+        let extra = blocks.next().unwrap_or_default();
         model.diffuse_form = diffuse_from(code, &extra, path)?;
+    }
+    if flags & HEIGHT_CORRELATED != 0 {
+        model.masking = Masking::HeightCorrelated;
+    }
+    if flags & COMPENSATED != 0 {
+        let v = blocks.next().unwrap_or_default();
+        if v.len() < 12 || v.len() % 3 != 0 {
+            return Err(invalid(
+                path,
+                format!("compensation trailer of {} values", v.len()),
+            ));
+        }
+        let n = (v.len() - 6) / 3;
+        model.compensation = Some(Compensation {
+            albedo: std::array::from_fn(|c| v[c * n..(c + 1) * n].to_vec()),
+            average: [v[3 * n], v[3 * n + 1], v[3 * n + 2]],
+            scale: [v[3 * n + 3], v[3 * n + 4], v[3 * n + 5]],
+        });
+    }
+    if flags != 0 {
         model.validate().map_err(|e| bad_model(path, e))?;
     }
     Ok(model)

@@ -65,6 +65,14 @@ pub struct SampleOptions {
     /// scale with an equally unconstrained grazing G; left free, a lobe can
     /// put all its mass into such a cell.
     pub max_theta_h_deg: f64,
+    /// Grazing taper: samples whose larger elevation max(theta_i, theta_o)
+    /// lies past this angle (degrees) are trusted less, their weight
+    /// multiplied by (90 - theta) / (90 - taper), falling linearly to 0 at
+    /// the horizon. With a cut-off near 90 degrees the fit then follows the
+    /// grazing data's trend without letting the noisiest cells dominate.
+    /// `None`: full weight up to the cut-off.
+    #[serde(default)]
+    pub taper_from_deg: Option<f64>,
 }
 
 impl Default for SampleOptions {
@@ -74,6 +82,7 @@ impl Default for SampleOptions {
             epsilon: 1e-3,
             max_theta_deg: 85.0,
             max_theta_h_deg: 75.0,
+            taper_from_deg: None,
         }
     }
 }
@@ -85,6 +94,18 @@ impl SampleOptions {
             Weighting::Compressive => (cos_i / (rho * cos_i + self.epsilon)).powi(2),
             Weighting::CosineL2 => cos_i * cos_i,
             Weighting::Uniform => 1.0,
+        }
+    }
+
+    /// The grazing taper's factor for a sample whose larger elevation is
+    /// `theta` (radians): 1 without a taper or before it.
+    pub fn taper(&self, theta: f64) -> f64 {
+        match self.taper_from_deg {
+            Some(from) if theta > from.to_radians() => {
+                let half_pi = std::f64::consts::FRAC_PI_2;
+                ((half_pi - theta) / (half_pi - from.to_radians())).clamp(0.0, 1.0)
+            }
+            _ => 1.0,
         }
     }
 }
@@ -432,6 +453,13 @@ impl FitSet {
                 options.max_theta_deg
             )));
         }
+        if let Some(t) = options.taper_from_deg {
+            if !(0.0..90.0).contains(&t) {
+                return Err(SampleError::Options(format!(
+                    "the grazing taper must start in [0, 90) degrees, got {t}"
+                )));
+            }
+        }
         let cut = options.max_theta_deg.to_radians();
         let mut stats = SampleStats {
             input: samples.samples.len(),
@@ -476,7 +504,10 @@ impl FitSet {
                     // Sort key: theta_i, theta_o, theta_h, theta_d (quantised).
                     key: (q(lo), q(hi), q(a.theta_h), q(a.theta_d)),
                     y: s.rgb,
-                    w: s.rgb.map(|v| options.weight(v, ci)),
+                    w: {
+                        let t = options.taper(a.theta_i.max(a.theta_o));
+                        s.rgb.map(|v| options.weight(v, ci) * t)
+                    },
                     index: index as u32,
                     swapped,
                 })

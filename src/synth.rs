@@ -63,6 +63,8 @@ pub fn known_factor_model(layout: Layout, alphas: &[f64]) -> Model {
         layout,
         diffuse: [0.05, 0.08, 0.03],
         diffuse_form: Default::default(),
+        masking: Default::default(),
+        compensation: None,
         fresnel,
         lobes,
     }

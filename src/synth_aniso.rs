@@ -361,6 +361,8 @@ pub fn known_model() -> Model {
         layout,
         diffuse: [0.04, 0.06, 0.08],
         diffuse_form: Default::default(),
+        masking: Default::default(),
+        compensation: None,
         fresnel,
         lobes,
     }

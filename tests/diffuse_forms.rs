@@ -7,14 +7,15 @@ use npf::loaders::MeasuredSamples;
 use npf::metrics::compare_model;
 use npf::model::{DiffuseForm, Layout, Model};
 use npf::modelfile::{self, ModelFile};
-use npf::reconstruct::to_merl;
-use npf::samples::{FitSet, SampleOptions, Weighting};
-use npf::solver::{DiffuseKind, Executor, Factors, FitOptions, FitResult};
+use npf::solver::{DiffuseKind, FitOptions, FitResult};
 use npf::synth::known_factor_model;
 
 #[path = "common/monotone.rs"]
 mod monotone;
 use monotone::assert_stages_monotone;
+#[path = "common/synthetic_fit.rs"]
+mod synthetic_fit;
+use synthetic_fit::{fit_one_lobe, samples};
 
 /// One rough lobe scaled to reflect at most 40 % at normal incidence (a
 /// lobe reflecting more than it receives has no energy left to couple),
@@ -32,12 +33,6 @@ fn truth(form: impl Fn(&Model) -> DiffuseForm) -> Model {
     m
 }
 
-fn samples(m: &Model, keep: usize) -> MeasuredSamples {
-    let mut s = to_merl(m).samples("synthetic");
-    s.samples = s.samples.into_iter().step_by(keep).collect();
-    s
-}
-
 fn fit(s: &MeasuredSamples, diffuse: DiffuseKind, sweeps: usize, trace: bool) -> FitResult {
     fit_from(s, diffuse, sweeps, trace, None)
 }
@@ -49,26 +44,11 @@ fn fit_from(
     trace: bool,
     start: Option<&Model>,
 ) -> FitResult {
-    let so = SampleOptions {
-        weighting: Weighting::CosineL2,
-        ..Default::default()
-    };
-    let set = FitSet::build(s, Layout::default(), so).unwrap();
     let opts = FitOptions {
-        lobes: 1,
-        max_sweeps: sweeps,
-        tol: if trace { 0.0 } else { 1e-9 },
-        trace_stages: trace,
         diffuse,
         ..Default::default()
     };
-    let ex = Executor::new(&set, opts);
-    match start {
-        Some(m) => ex.start_from(Factors::from_model(m)),
-        None => ex,
-    }
-    .run()
-    .unwrap()
+    fit_one_lobe(s, opts, sweeps, trace, start)
 }
 
 /// Fits the truth with its own form and with Lambert, both started from the

@@ -191,6 +191,8 @@ fn known_anisotropic_model() -> npf::model::Model {
         layout,
         diffuse: [0.05, 0.08, 0.1],
         diffuse_form: Default::default(),
+        masking: Default::default(),
+        compensation: None,
         fresnel,
         lobes,
     };

@@ -88,6 +88,8 @@ fn anisotropic_on(layout: Layout) -> Model {
         layout,
         diffuse: [0.04, 0.05, 0.06],
         diffuse_form: Default::default(),
+        masking: Default::default(),
+        compensation: None,
         fresnel: iso.fresnel.clone(),
         lobes,
     };

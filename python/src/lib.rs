@@ -541,6 +541,8 @@ impl PyModel {
             layout: npf::model::Layout::isotropic(n),
             diffuse: d[0].map(|x| x as f32),
             diffuse_form: Default::default(),
+            masking: Default::default(),
+            compensation: None,
             fresnel: [f32s(&f[0]), f32s(&f[1]), f32s(&f[2])],
             lobes: s
                 .iter()
@@ -1015,6 +1017,9 @@ fn fit(
         coarse: d.coarse.clone(),
         coarse_tol: d.coarse_tol,
         gauss_newton: d.gauss_newton,
+        // The remaining options (grazing taper, masking, compensation) at
+        // the library's defaults.
+        ..d
     };
     for (name, v) in [
         ("epsilon", config.epsilon),

@@ -239,7 +239,8 @@ impl NpfBxdf {
     }
 
     fn has_diffuse(&self) -> bool {
-        self.model.diffuse.iter().any(|&d| d > 0.0)
+        // The compensation term is cosine-sampled with the diffuse term.
+        self.model.diffuse.iter().any(|&d| d > 0.0) || self.model.compensation.is_some()
     }
 
     /// Component estimates of the directional albedo (luminance) at

@@ -200,11 +200,14 @@ pub struct FlatEval {
 
 impl FlatEval {
     /// The flat copy of a (valid) model, or `None` when it is anisotropic,
-    /// has more than [`FLAT_LOBES`] lobes or a non-Lambertian diffuse form.
+    /// has more than [`FLAT_LOBES`] lobes, a non-Lambertian diffuse form,
+    /// height-correlated masking or a compensation term.
     pub fn new(model: &Model) -> Option<Self> {
         let l = &model.layout;
-        // Only the Lambertian diffuse term is flattened; other forms go through Model::eval.
-        let lambert = matches!(model.diffuse_form, crate::model::DiffuseForm::Lambert);
+        // Only the paper's plain form is flattened; the options go through Model::eval.
+        let lambert = matches!(model.diffuse_form, crate::model::DiffuseForm::Lambert)
+            && model.masking.is_separable()
+            && model.compensation.is_none();
         if !lambert || !l.is_isotropic() || model.lobes.is_empty() || model.lobes.len() > FLAT_LOBES
         {
             return None;

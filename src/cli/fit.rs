@@ -77,6 +77,22 @@ pub struct FitFlags {
     /// Tolerance of the coarse levels.
     #[arg(long, default_value_t = defaults().coarse_tol)]
     pub coarse_tol: f64,
+    /// Grazing taper: past this angle (degrees) a sample's weight falls
+    /// linearly to 0 at the horizon; use with a cut-off near 90, e.g.
+    /// `--max-theta 89 --taper-from 80` (see docs/fitting.md).
+    #[arg(long)]
+    pub taper_from: Option<f64>,
+    /// Masking-shadowing form: separable G(theta_i) G(theta_o) (the
+    /// paper's) or height-correlated G2 = 1 / (1 + Lambda_i + Lambda_o).
+    #[arg(long, value_enum, default_value_t = defaults().masking)]
+    pub masking: crate::model::Masking,
+    /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to the
+    /// model (eval, sampler and .bsdf/.binary exports use it; the shader
+    /// exports refuse it). For energy-conservation studies only: measured
+    /// tables already hold multiple scattering, and on fitted materials the
+    /// term costs 14-25 dB rendering PSNR (docs/fitting.md).
+    #[arg(long)]
+    pub compensate: bool,
 }
 
 impl FitFlags {
@@ -106,6 +122,9 @@ impl FitFlags {
             coarse: self.coarse.clone(),
             coarse_tol: self.coarse_tol,
             gauss_newton: self.gauss_newton,
+            taper_from: self.taper_from,
+            masking: self.masking,
+            compensate: self.compensate,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! the energy-coupled diffuse form (Kelemen / Kulla-Conty, seed `001`).
 
 use crate::bsdf::half_vector_quadrature;
-use crate::model::{DiffuseForm, Model, ALBEDO_NODES};
+use crate::model::{Compensation, DiffuseForm, Model, ALBEDO_NODES};
 use std::f64::consts::FRAC_PI_2;
 
 /// Strata of the half-vector quadrature in u and phi_h. Coarser than the
@@ -84,6 +84,7 @@ fn coupled_form_of(e: [Vec<f64>; 3]) -> DiffuseForm {
 /// averages) and the per-channel scale 1/pi times the colour factor.
 pub fn multiple_scattering(model: &Model) -> (DiffuseForm, [f64; 3]) {
     let mut white = model.clone();
+    white.compensation = None;
     for f in white.fresnel.iter_mut() {
         f.iter_mut().for_each(|v| *v = 1.0);
     }
@@ -102,7 +103,11 @@ pub fn multiple_scattering(model: &Model) -> (DiffuseForm, [f64; 3]) {
                 let t = (k as f64 + 0.5) / nf as f64 * FRAC_PI_2;
                 2.0 * f[k] as f64 * t.cos() * t.sin() * FRAC_PI_2 / nf as f64
             })
-            .sum::<f64>();
+            .sum::<f64>()
+            // A Fresnel average cannot exceed 1; a fitted F (gauge F(0) = 1,
+            // rising at grazing) can, and would make the denominator
+            // below vanish.
+            .min(1.0);
         let e = average[c] as f64;
         let colour = if e > 0.0 {
             favg * e / (1.0 - favg * (1.0 - e)).max(1e-6)
@@ -112,4 +117,18 @@ pub fn multiple_scattering(model: &Model) -> (DiffuseForm, [f64; 3]) {
         colour / std::f64::consts::PI
     });
     (form, scale)
+}
+
+/// [`multiple_scattering`] as the model's own [`Compensation`] term (what
+/// `npf fit --compensate` stores).
+pub fn compensation(model: &Model) -> Compensation {
+    let (form, scale) = multiple_scattering(model);
+    let DiffuseForm::EnergyCoupled { albedo, average } = form else {
+        unreachable!("multiple_scattering returns the coupled form")
+    };
+    Compensation {
+        albedo,
+        average,
+        scale: scale.map(|v| v as f32),
+    }
 }

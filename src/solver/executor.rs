@@ -175,6 +175,7 @@ impl<'a> Executor<'a> {
         }
         let mask = opts.channel_mask;
         apply_mask(&mut factors, &mask);
+        factors.masking = opts.masking;
         let monotone_from = d_monotone_from(set, opts.d_monotone_from_deg);
         let mut st = State::new(set, factors);
         let mut scratch = Scratch::new(set.len());
@@ -283,9 +284,12 @@ impl<'a> Executor<'a> {
             }
             // The caches are fresh here (every path above leaves them so).
             let mut newton = false;
-            if opts.gauss_newton && gn_wait > 0 {
+            // The joint step's partials are those of the separable G G
+            // product; the height-correlated form has its own G pass only.
+            let newton_on = opts.gauss_newton && opts.masking == crate::model::Masking::Separable;
+            if newton_on && gn_wait > 0 {
                 gn_wait -= 1;
-            } else if opts.gauss_newton {
+            } else if newton_on {
                 let project = |t: &mut Factors, x: &Factors| {
                     apply_mask(t, &mask);
                     for (d, xd) in t.d.iter_mut().zip(&x.d) {
@@ -475,6 +479,7 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
             .collect(),
         g: (0..lobes).map(|m| tab(&x.g[m], &old.g[m])).collect(),
         f: std::array::from_fn(|c| tab(&x.f[c], &old.f[c])),
+        masking: x.masking,
     }
 }
 
@@ -543,6 +548,7 @@ mod tests {
             d: vec![d],
             g: vec![g],
             f: std::array::from_fn(|_| vec![1.0; 30]),
+            masking: Default::default(),
         };
         let mut d_old = vec![1.0; 30];
         let mut d_new = vec![1.0; 30];

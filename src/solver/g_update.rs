@@ -71,10 +71,10 @@ pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
 /// touch 32 bytes per sample: G(theta_i), G(theta_o), S_r, S_a.
 #[derive(Clone, Copy, Default)]
 pub(crate) struct GWork {
-    gi: f64,
-    go: f64,
-    sr: f64,
-    sa: f64,
+    pub(crate) gi: f64,
+    pub(crate) go: f64,
+    pub(crate) sr: f64,
+    pub(crate) sa: f64,
 }
 
 /// Shared mutable access to distinct elements from parallel tasks.
@@ -93,6 +93,38 @@ impl<'a, T> Disjoint<'a, T> {
     }
 }
 
+/// B_C = s_C D F / (cos cos) of lobe m at sample j: what one unit of the
+/// lobe's masking product adds to the sample's value.
+#[inline]
+pub(crate) fn spec_coef(set: &FitSet, s: [f64; 3], m: usize, c: &Cache, j: usize) -> [f64; 3] {
+    let p = c.dv[m] * set.inv_cc[j];
+    [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
+}
+
+/// Fill each sample's G values of lobe m and its S_r, S_a.
+pub(crate) fn fill_work(set: &FitSet, st: &State, m: usize, work: &mut Vec<GWork>) {
+    let s = st.factors.s[m];
+    work.resize(set.len(), GWork::default());
+    work.par_iter_mut()
+        .zip(&st.cache)
+        .enumerate()
+        .for_each(|(j, (wk, c))| {
+            let b = spec_coef(set, s, m, c, j);
+            let w = &set.w[j];
+            let (mut sr, mut sa) = (0.0, 0.0);
+            for ch in 0..3 {
+                sr += w[ch] * c.r[ch] * b[ch];
+                sa += w[ch] * b[ch] * b[ch];
+            }
+            *wk = GWork {
+                gi: c.gi[m],
+                go: c.go[m],
+                sr,
+                sa,
+            };
+        });
+}
+
 pub(crate) fn update_g(
     set: &FitSet,
     st: &mut State,
@@ -107,30 +139,10 @@ pub(crate) fn update_g(
     if method == GMethod::Fixed {
         return stats;
     }
-    let s = st.factors.s[m];
-    let coef = |c: &Cache, j: usize| {
-        let p = c.dv[m] * set.inv_cc[j];
-        [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
-    };
-    work.resize(set.len(), GWork::default());
-    work.par_iter_mut()
-        .zip(&st.cache)
-        .enumerate()
-        .for_each(|(j, (wk, c))| {
-            let b = coef(c, j);
-            let w = &set.w[j];
-            let (mut sr, mut sa) = (0.0, 0.0);
-            for ch in 0..3 {
-                sr += w[ch] * c.r[ch] * b[ch];
-                sa += w[ch] * b[ch] * b[ch];
-            }
-            *wk = GWork {
-                gi: c.gi[m],
-                go: c.go[m],
-                sr,
-                sa,
-            };
-        });
+    fill_work(set, st, m, work);
+    if !st.factors.masking.is_separable() {
+        return super::g2_update::g2_points(set, st, m, work, stats);
+    }
     let inc = &set.g_inc;
     let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
     for k in 0..inc.has_data.len() {
@@ -197,14 +209,29 @@ pub(crate) fn update_g(
             }
         });
     }
+    apply_work(set, st, m, work, |a, b| a * b);
+    stats
+}
+
+/// Write the G pass's new G values of lobe m back into the caches, moving
+/// each residual by B_C times the change of `product` (the lobe's masking
+/// product of the two G values).
+pub(crate) fn apply_work(
+    set: &FitSet,
+    st: &mut State,
+    m: usize,
+    work: &[GWork],
+    product: impl Fn(f64, f64) -> f64 + Sync,
+) {
+    let s = st.factors.s[m];
     st.cache
         .par_iter_mut()
-        .zip(&work[..])
+        .zip(work)
         .enumerate()
         .for_each(|(j, (c, x))| {
-            let change = x.gi * x.go - c.gi[m] * c.go[m];
-            if change != 0.0 {
-                let b = coef(c, j);
+            if x.gi != c.gi[m] || x.go != c.go[m] {
+                let change = product(x.gi, x.go) - product(c.gi[m], c.go[m]);
+                let b = spec_coef(set, s, m, c, j);
                 for ch in 0..3 {
                     c.r[ch] += b[ch] * change;
                 }
@@ -212,7 +239,6 @@ pub(crate) fn update_g(
                 c.go[m] = x.go;
             }
         });
-    stats
 }
 
 #[cfg(test)]

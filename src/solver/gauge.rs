@@ -165,6 +165,9 @@ pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) -> Scales {
         g: vec![1.0; lobes],
         f: [1.0; 3],
     };
+    // Height-correlated masking reads G as a true G1 (its scale is not
+    // traded with s), so only separable G is rescaled.
+    let separable = f.masking.is_separable();
     for m in 0..lobes {
         let gmax = f.g[m]
             .iter()
@@ -172,7 +175,7 @@ pub fn normalise(f: &mut Factors, set: &FitSet, d_measure: &[f64]) -> Scales {
             .filter(|(_, &h)| h)
             .map(|(&v, _)| v)
             .fold(0.0, f64::max);
-        if gmax > 0.0 {
+        if gmax > 0.0 && separable {
             f.g[m].iter_mut().for_each(|v| *v /= gmax);
             f.s[m].iter_mut().for_each(|v| *v *= gmax * gmax);
             k.g[m] = 1.0 / gmax;

@@ -113,11 +113,11 @@ fn partials(set: &FitSet, st: &State, j: usize, c: &Cache) -> Partials {
         p.b[ch] = basis_at(&st.basis, j, ch);
         for m in 0..f.lobes() {
             let sf = f.s[m][ch] * c.fv[ch] * icc;
-            p.s[m][ch] = c.fv[ch] * c.lobe_product(m, icc);
+            p.s[m][ch] = c.fv[ch] * c.lobe_product(m, icc, crate::model::Masking::Separable);
             p.d[m][ch] = sf * c.gi[m] * c.go[m];
             p.gi[m][ch] = sf * c.dv[m] * c.go[m];
             p.go[m][ch] = sf * c.dv[m] * c.gi[m];
-            p.f[ch] += f.s[m][ch] * c.lobe_product(m, icc);
+            p.f[ch] += f.s[m][ch] * c.lobe_product(m, icc, crate::model::Masking::Separable);
         }
     }
     p

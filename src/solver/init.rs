@@ -56,5 +56,6 @@ pub fn initial_factors_with(layout: Layout, alphas: &[f64]) -> Factors {
             vec![1.0; layout.f.len()],
             vec![1.0; layout.f.len()],
         ],
+        masking: Default::default(),
     }
 }

@@ -15,6 +15,7 @@
 
 pub mod diffuse;
 pub mod executor;
+pub mod g2_update;
 pub mod g_update;
 pub mod gauge;
 pub mod gauss_newton;
@@ -102,6 +103,10 @@ pub struct FitOptions {
     /// factor ([`gauss_newton`]), kept only if it lowers the objective.
     #[serde(default)]
     pub gauss_newton: bool,
+    /// How each lobe combines G at the two directions: separable (the
+    /// paper's) or height-correlated, whose G pass is [`g2_update`].
+    #[serde(default)]
+    pub masking: crate::model::Masking,
 }
 
 fn all_channels() -> [[bool; 3]; MAX_LOBES] {
@@ -129,6 +134,7 @@ impl Default for FitOptions {
             channel_mask: all_channels(),
             diffuse: DiffuseKind::Lambert,
             gauss_newton: false,
+            masking: crate::model::Masking::Separable,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Working factors (f64) and the per-sample caches the updates share.
 
 use super::{chunked_sum, chunked_sum_mut, MAX_LOBES};
-use crate::model::{DiffuseForm, Layout, Lobe, Model};
+use crate::model::{DiffuseForm, Layout, Lobe, Masking, Model};
 use crate::samples::FitSet;
 use rayon::prelude::*;
 
@@ -20,6 +20,9 @@ pub struct Factors {
     pub g: Vec<Vec<f64>>,
     /// F_C per channel.
     pub f: [Vec<f64>; 3],
+    /// How each lobe combines G at the two directions (a structural choice
+    /// of the model, like the layout; no update changes it).
+    pub masking: Masking,
 }
 
 impl Factors {
@@ -35,6 +38,8 @@ impl Factors {
             layout: self.layout,
             diffuse: self.diffuse.map(|x| x as f32),
             diffuse_form: Default::default(),
+            masking: self.masking,
+            compensation: None,
             fresnel: [v(&self.f[0]), v(&self.f[1]), v(&self.f[2])],
             lobes: (0..self.lobes())
                 .map(|m| Lobe {
@@ -60,6 +65,7 @@ impl Factors {
                 v(&model.fresnel[1]),
                 v(&model.fresnel[2]),
             ],
+            masking: model.masking,
         }
     }
 }
@@ -81,10 +87,11 @@ pub struct Cache {
 }
 
 impl Cache {
-    /// s_C^m-free specular product of lobe m: D G G / (cos cos).
+    /// s_C^m-free specular product of lobe m: D G G / (cos cos) (G2 in
+    /// place of G G for height-correlated masking).
     #[inline]
-    pub fn lobe_product(&self, m: usize, inv_cc: f64) -> f64 {
-        self.dv[m] * self.gi[m] * self.go[m] * inv_cc
+    pub fn lobe_product(&self, m: usize, inv_cc: f64, masking: Masking) -> f64 {
+        self.dv[m] * masking.product(self.gi[m], self.go[m]) * inv_cc
     }
 }
 
@@ -119,7 +126,7 @@ pub(crate) fn set_residual(
     for ch in 0..3 {
         let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
         for m in 0..f.lobes() {
-            v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+            v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j], f.masking);
         }
         c.r[ch] = v - set.y[j][ch];
     }

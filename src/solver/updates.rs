@@ -114,8 +114,9 @@ pub(crate) fn update_d(
     } else {
         st.factors.s[m]
     };
+    let masking = st.factors.masking;
     let coef = |c: &Cache, j: usize| {
-        let p = c.gi[m] * c.go[m] * set.inv_cc[j];
+        let p = masking.product(c.gi[m], c.go[m]) * set.inv_cc[j];
         [s[0] * c.fv[0] * p, s[1] * c.fv[1] * p, s[2] * c.fv[2] * p]
     };
     fill_scratch(set, &st.cache, scratch, |c, j| coef(c, j), [true; 3]);
@@ -148,10 +149,11 @@ pub(crate) fn update_d(
 pub(crate) fn update_f(set: &FitSet, st: &mut State, scratch: &mut [Scratch; 3]) {
     let lobes = st.factors.lobes();
     let s = st.factors.s.clone();
+    let masking = st.factors.masking;
     let coef = |c: &Cache, j: usize| {
         let mut a = [0.0; 3];
         for m in 0..lobes {
-            let p = c.lobe_product(m, set.inv_cc[j]);
+            let p = c.lobe_product(m, set.inv_cc[j], masking);
             for ch in 0..3 {
                 a[ch] += s[m][ch] * p;
             }
@@ -245,6 +247,7 @@ pub(crate) fn solve_diffuse_and_scales(
     const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
     let cache = &st.cache;
     let basis = &st.basis;
+    let masking = st.factors.masking;
     let sums: [f64; SIZE] = chunked_sum(set.len(), |range| {
         let mut acc = [0.0; SIZE];
         for j in range {
@@ -253,7 +256,7 @@ pub(crate) fn solve_diffuse_and_scales(
                 let mut b = [0.0; MAXK];
                 b[0] = basis_at(basis, j, ch);
                 for m in 0..lobes {
-                    b[m + 1] = c.fv[ch] * c.lobe_product(m, set.inv_cc[j]);
+                    b[m + 1] = c.fv[ch] * c.lobe_product(m, set.inv_cc[j], masking);
                 }
                 let w = set.w[j][ch];
                 let y = set.y[j][ch];

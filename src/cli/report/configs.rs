@@ -2,8 +2,9 @@
 //! compares, in report order.
 
 use crate::fit::{FitConfig, ModelKind};
+use crate::model::Masking;
 use crate::samples::Weighting;
-use crate::solver::GMethod;
+use crate::solver::{DiffuseKind, GMethod};
 
 /// One fitted configuration of the benchmark.
 #[derive(Clone, Debug)]
@@ -20,6 +21,9 @@ pub struct Configuration {
     pub g_method: GMethod,
     /// Residual weighting.
     pub weighting: Weighting,
+    /// The accuracy options (diffuse form, masking, grazing fit,
+    /// compensation) applied on top of the defaults.
+    pub options: fn(FitConfig) -> FitConfig,
 }
 
 /// All benchmark configurations, in report order.
@@ -31,6 +35,12 @@ pub fn configurations() -> Vec<Configuration> {
         lobes,
         g_method,
         weighting,
+        options: |f| f,
+    };
+    // The accuracy options of issue 16, each on the default sf-3.
+    let option = |name, what, options: fn(FitConfig) -> FitConfig| Configuration {
+        options,
+        ..c(name, what, Factor, 3, Cubic, Compressive)
     };
     use GMethod::*;
     use ModelKind::*;
@@ -92,6 +102,43 @@ pub fn configurations() -> Vec<Configuration> {
             Cubic,
             Uniform,
         ),
+        option(
+            "sf-3-energy-coupled",
+            "3 lobes, energy-coupled diffuse term",
+            |f| FitConfig {
+                diffuse: DiffuseKind::EnergyCoupled,
+                ..f
+            },
+        ),
+        option("sf-3-oren-nayar", "3 lobes, Oren-Nayar diffuse term", |f| {
+            FitConfig {
+                diffuse: DiffuseKind::OrenNayar,
+                ..f
+            }
+        }),
+        option("sf-3-g2", "3 lobes, height-correlated masking G2", |f| {
+            FitConfig {
+                masking: Masking::HeightCorrelated,
+                ..f
+            }
+        }),
+        option(
+            "sf-3-taper",
+            "3 lobes, fitted to 89 deg with weights tapering from 80 deg",
+            |f| FitConfig {
+                max_theta: 89.0,
+                taper_from: Some(80.0),
+                ..f
+            },
+        ),
+        option(
+            "sf-3-compensated",
+            "3 lobes plus Kulla-Conty multiple scattering of the fitted lobes",
+            |f| FitConfig {
+                compensate: true,
+                ..f
+            },
+        ),
         c(
             "independent-g",
             "Bagher et al.'s Independent-G (per-channel D, F, G; golden-section G)",
@@ -117,7 +164,7 @@ impl Configuration {
     /// side), and an optional sweep limit.
     pub fn fit_config(&self, max_sweeps: Option<usize>) -> FitConfig {
         let defaults = FitConfig::default();
-        FitConfig {
+        (self.options)(FitConfig {
             model: self.kind,
             lobes: self.lobes,
             g_method: self.g_method,
@@ -125,7 +172,7 @@ impl Configuration {
             threads: 1,
             max_sweeps: max_sweeps.unwrap_or(defaults.max_sweeps),
             ..defaults
-        }
+        })
     }
 
     /// The model's parameter count.

@@ -8,7 +8,7 @@ use super::rows::{self, Row};
 use crate::cli::png::encode_png;
 use crate::cli::{CliError, CliResult};
 use crate::evaluation::Reference;
-use crate::fit::{fit_model, ModelKind};
+use crate::fit::{fit_model, FitConfig, ModelKind};
 use crate::model::Model;
 use crate::render::{Image, RenderOptions};
 use npf_data_loaders::atomic::write_bytes_atomic;
@@ -148,8 +148,10 @@ pub fn run_job(
             image: md.image.clone(),
             render: render_opts,
         };
+        // Every configuration is scored on the default cut-off's samples
+        // (a configuration may fit further out, e.g. sf-3-taper).
         let (eval, image) = reference
-            .evaluate_model(config.max_theta, &fit.model)
+            .evaluate_model(FitConfig::default().max_theta, &fit.model)
             .map_err(|e| e.to_string())?;
         let dir = ws.out.join(name);
         write_png(

@@ -46,6 +46,9 @@ pub enum ShaderError {
     /// The model's diffuse form has no shader code yet.
     #[error("the shader exports support the Lambertian diffuse form only, this model's is {0} (refit with --diffuse lambert, or export .bsdf, which tabulates Model::eval)")]
     DiffuseForm(&'static str),
+    /// A model option the generated code does not express.
+    #[error("the shader exports support separable masking without compensation only, this model has {0} (refit without --masking/--compensate, or export .bsdf, which tabulates Model::eval)")]
+    Unsupported(&'static str),
 }
 
 /// Options shared by the three exports.
@@ -88,6 +91,14 @@ fn prepare(model: &Model, options: &ShaderOptions) -> Result<SamplerTables, Shad
     model.validate()?;
     if model.diffuse_form != crate::model::DiffuseForm::Lambert {
         return Err(ShaderError::DiffuseForm(model.diffuse_form.name()));
+    }
+    if !model.masking.is_separable() {
+        return Err(ShaderError::Unsupported("height-correlated masking"));
+    }
+    if model.compensation.is_some() {
+        return Err(ShaderError::Unsupported(
+            "a multiple-scattering compensation term",
+        ));
     }
     Ok(SamplerTables::new(model))
 }
