@@ -62,7 +62,7 @@ pub struct FitFlags {
     pub no_accelerate: bool,
     /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
     /// anisotropic tables only).
-    #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new())]
+    #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
     pub gauss_newton: Option<bool>,
     /// Worker threads (0: all cores). Results are identical for any count.
     #[arg(long, default_value_t = defaults().threads)]
