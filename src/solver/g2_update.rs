@@ -13,12 +13,11 @@
 //! stays in [0, 1] (G is a G1 here), and the best step is applied only if
 //! dE < 0, so the objective never rises.
 
+use super::chunked_sum;
 use super::g_update::{apply_work, GPassStats, GWork};
 use super::state::State;
-use super::CHUNK;
 use crate::model::height_correlated;
 use crate::samples::FitSet;
-use rayon::prelude::*;
 
 /// Gauss-Newton passes per control point.
 const STEPS: usize = 4;
@@ -68,35 +67,22 @@ pub(crate) fn g2_points(
             continue;
         }
         let range = inc.entries(k);
-        let chunks = range.len().div_ceil(CHUNK);
         // dE(t), dE'(t) and the Gauss-Newton curvature, in chunk order.
         let pass = |wv: &[GWork], t: f64| -> [f64; 3] {
-            let partial: Vec<[f64; 3]> = (0..chunks)
-                .into_par_iter()
-                .map(|ci| {
-                    let lo = range.start + ci * CHUNK;
-                    let hi = (lo + CHUNK).min(range.end);
-                    let mut acc = [0.0; 3];
-                    for e in lo..hi {
-                        let x = &wv[inc.sample[e] as usize];
-                        let (u, v) = (inc.u[e], inc.v[e]);
-                        let p0 = height_correlated(x.gi, x.go);
-                        let (p, slope) = g2_and_slope(x.gi + u * t, x.go + v * t, u, v);
-                        let dp = p - p0;
-                        acc[0] += 2.0 * x.sr * dp + x.sa * dp * dp;
-                        acc[1] += 2.0 * (x.sr + x.sa * dp) * slope;
-                        acc[2] += 2.0 * x.sa * slope * slope;
-                    }
-                    acc
-                })
-                .collect();
-            let mut total = [0.0; 3];
-            for p in partial {
-                for i in 0..3 {
-                    total[i] += p[i];
+            chunked_sum(range.len(), |r| {
+                let mut acc = [0.0; 3];
+                for e in range.start + r.start..range.start + r.end {
+                    let x = &wv[inc.sample[e] as usize];
+                    let (u, v) = (inc.u[e], inc.v[e]);
+                    let p0 = height_correlated(x.gi, x.go);
+                    let (p, slope) = g2_and_slope(x.gi + u * t, x.go + v * t, u, v);
+                    let dp = p - p0;
+                    acc[0] += 2.0 * x.sr * dp + x.sa * dp * dp;
+                    acc[1] += 2.0 * (x.sr + x.sa * dp) * slope;
+                    acc[2] += 2.0 * x.sa * slope * slope;
                 }
-            }
-            total
+                acc
+            })
         };
         let x0 = st.factors.g[m][k];
         let (lo, hi) = (-x0.max(0.0), 1.0 - x0);

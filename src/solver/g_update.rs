@@ -16,7 +16,7 @@
 //! through a (theta_i, theta_o) pair); the sums inside one are parallel.
 
 use super::state::{Cache, State};
-use super::{GMethod, CHUNK};
+use super::{chunked_sum, GMethod, CHUNK};
 use crate::samples::FitSet;
 use rayon::prelude::*;
 
@@ -150,33 +150,21 @@ pub(crate) fn update_g(
             continue;
         }
         let range = inc.entries(k);
-        let chunks = range.len().div_ceil(CHUNK);
         let wv = &work[..];
-        let partial: Vec<[f64; 4]> = (0..chunks)
-            .into_par_iter()
-            .map(|ci| {
-                let lo = range.start + ci * CHUNK;
-                let hi = (lo + CHUNK).min(range.end);
-                let mut acc = [0.0; 4];
-                for e in lo..hi {
-                    let x = &wv[inc.sample[e] as usize];
-                    let (u, v) = (inc.u[e], inc.v[e]);
-                    let p1 = x.gi * v + x.go * u;
-                    let p2 = u * v;
-                    acc[0] += 2.0 * x.sr * p1;
-                    acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
-                    acc[2] += 2.0 * x.sa * p1 * p2;
-                    acc[3] += x.sa * p2 * p2;
-                }
-                acc
-            })
-            .collect();
-        let mut c = [0.0; 4];
-        for p in partial {
-            for i in 0..4 {
-                c[i] += p[i];
+        let c = chunked_sum(range.len(), |r| {
+            let mut acc = [0.0; 4];
+            for e in range.start + r.start..range.start + r.end {
+                let x = &wv[inc.sample[e] as usize];
+                let (u, v) = (inc.u[e], inc.v[e]);
+                let p1 = x.gi * v + x.go * u;
+                let p2 = u * v;
+                acc[0] += 2.0 * x.sr * p1;
+                acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
+                acc[2] += 2.0 * x.sa * p1 * p2;
+                acc[3] += x.sa * p2 * p2;
             }
-        }
+            acc
+        });
         let x = st.factors.g[m][k];
         let t = match method {
             GMethod::Cubic => best_cubic_step(&c, x),
@@ -194,6 +182,7 @@ pub(crate) fn update_g(
         // Each sample appears once in a point's list, so the entries touch
         // distinct samples and can be applied in parallel.
         let shared = Disjoint::new(&mut work[..]);
+        let chunks = range.len().div_ceil(CHUNK);
         (0..chunks).into_par_iter().for_each(|ci| {
             let lo = range.start + ci * CHUNK;
             let hi = (lo + CHUNK).min(range.end);
