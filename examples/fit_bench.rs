@@ -137,8 +137,8 @@ fn main() {
 fn one(path: &Path, s: &Settings) -> Result<String, String> {
     let t0 = Instant::now();
     let table = MerlTable::read(path).map_err(|e| e.to_string())?;
-    let samples = table.samples(&path.display().to_string());
-    drop(table);
+    let source = path.display().to_string();
+    let samples = table.samples(&source);
     let read = t0.elapsed().as_secs_f64();
     let opts = FitOptions {
         max_sweeps: s.max_sweeps,
@@ -153,7 +153,10 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
         factors: &s.coarse,
         tol: s.coarse_tol,
     };
-    let fitted = npf::coarse::fit(&samples, (layout, so), schedule, opts, start, &mut quiet)
+    // Owned: the samples are freed before the full set's sweeps (as in
+    // `npf fit`) and made again from the table for the error measures.
+    let owned = std::borrow::Cow::Owned(samples);
+    let fitted = npf::coarse::fit(owned, (layout, so), schedule, opts, start, &mut quiet)
         .map_err(|e| e.to_string())?;
     let (res, levels) = (fitted.result, fitted.levels);
     // The full set is built while the coarse levels run: "load + set" ends
@@ -170,6 +173,9 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
         write(&out, &file, true).map_err(|e| e.to_string())?;
     }
     let wall = t0.elapsed().as_secs_f64();
+    npf::memory::release_free();
+    let samples = table.samples(&source);
+    drop(table);
     let m = compare_model(&samples, SampleOptions::default().max_theta_deg, &res.model);
     // Mean milliseconds per sweep in each kind of stage (summed over lobes).
     let mut ms = [0.0f64; 6];

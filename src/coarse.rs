@@ -15,6 +15,7 @@ use crate::model::Layout;
 use crate::samples::{FitSet, SampleError, SampleOptions};
 use crate::solver::{Executor, Factors, FitOptions, FitResult, Observer, SolverError};
 use npf_data_loaders::MeasuredSamples;
+use std::borrow::Cow;
 
 /// Every `factor`-th sample on average, chosen by a hash of the index (not a
 /// stride: MERL's order is a regular grid, and a stride would alias with
@@ -105,8 +106,11 @@ pub struct CoarseFit {
 /// set is built while the decimated levels run (the build's serial parts
 /// leave a core free). The decimated levels use `opts` with the
 /// schedule's tolerance; the observer sees the full set's sweeps only.
+/// Owned samples are freed once every set is built, before the full set's
+/// sweeps: the measured samples (88 bytes each, 128 MB for a MERL table)
+/// and the solver's caches are then never in memory together.
 pub fn fit(
-    samples: &MeasuredSamples,
+    samples: Cow<'_, MeasuredSamples>,
     (layout, so): (Layout, SampleOptions),
     schedule: Schedule,
     opts: FitOptions,
@@ -116,13 +120,17 @@ pub fn fit(
     let t0 = std::time::Instant::now();
     let (set, coarse) = rayon::join(
         || {
-            let set = FitSet::build(samples, layout, so);
+            let set = FitSet::build(&samples, layout, so);
             (set, t0.elapsed().as_secs_f64())
         },
-        || levels_fit(samples, (layout, so), schedule, opts, start),
+        || levels_fit(&samples, (layout, so), schedule, opts, start),
     );
+    drop(samples);
     let (set, set_seconds) = (set.0?, set.1);
     let (start, levels) = coarse?;
+    // The decimated levels' sets and the build's temporaries are freed:
+    // give their pages back before the full set's caches are allocated.
+    crate::memory::release_free();
     let result = Executor::new(&set, opts)
         .start_from(start)
         .observe(observer)

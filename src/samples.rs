@@ -399,15 +399,36 @@ fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stenc
     out
 }
 
-#[derive(Clone, Copy)]
-struct Raw {
-    key: (i64, i64, i64, i64),
-    y: [f64; 3],
-    w: [f64; 3],
-    /// The measured sample's index (its angles are read from there).
-    index: u32,
-    /// Whether theta_i > theta_o (the key and stencils use them swapped).
-    swapped: bool,
+/// A sample's sort key: (theta_i, theta_o) ordered so that theta_i <=
+/// theta_o, then theta_h, theta_d, each quantised to 1e-7 rad; packed
+/// 32 bits a component (order-preserving for any angle below 214 rad), so
+/// the sort moves 32-byte (key, index) pairs instead of whole records.
+fn sort_key(a: &npf_data_loaders::geometry::Angles) -> u128 {
+    let q = |x: f64| {
+        let v = ((x * 1e7).round() as i64).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        (v as u32 ^ 0x8000_0000) as u128
+    };
+    let (lo, hi) = if a.theta_i > a.theta_o {
+        (a.theta_o, a.theta_i)
+    } else {
+        (a.theta_i, a.theta_o)
+    };
+    q(lo) << 96 | q(hi) << 64 | q(a.theta_h) << 32 | q(a.theta_d)
+}
+
+/// Merge sample r (value `ry`, weights `rw`) into the merged sample (y, w):
+/// its share of the objective's constant part, per channel.
+fn merge_into(y: &mut [f64; 3], w: &mut [f64; 3], ry: [f64; 3], rw: [f64; 3]) -> [f64; 3] {
+    let mut share = [0.0; 3];
+    for c in 0..3 {
+        let wsum = w[c] + rw[c];
+        if wsum > 0.0 {
+            share[c] = w[c] * rw[c] * (y[c] - ry[c]).powi(2) / wsum;
+            y[c] = (w[c] * y[c] + rw[c] * ry[c]) / wsum;
+        }
+        w[c] = wsum;
+    }
+    share
 }
 
 impl FitSet {
@@ -465,7 +486,6 @@ impl FitSet {
             input: samples.samples.len(),
             ..Default::default()
         };
-        let q = |x: f64| (x * 1e7).round() as i64;
         if let Some(index) = samples
             .samples
             .par_iter()
@@ -479,9 +499,11 @@ impl FitSet {
                 value,
             });
         }
-        // Weighted samples inside the cut-off, in input order (rayon's
-        // collect keeps it, for any thread count).
-        let mut raws: Vec<Raw> = samples
+        // (key, index) of every sample inside the cut-off. G(in) G(out) is
+        // symmetric in the two directions, so ordering each pair by
+        // elevation (azimuths travel with their elevation) changes no model
+        // value.
+        let mut order: Vec<(u128, u32)> = samples
             .samples
             .par_iter()
             .enumerate()
@@ -491,30 +513,11 @@ impl FitSet {
                 if a.theta_i > cut || a.theta_o > cut || ci <= 0.0 || co <= 0.0 {
                     return None;
                 }
-                // G(in) G(out) is symmetric in the two directions, so ordering
-                // each pair by elevation (azimuths travel with their elevation)
-                // changes no model value.
-                let swapped = a.theta_i > a.theta_o;
-                let (lo, hi) = if swapped {
-                    (a.theta_o, a.theta_i)
-                } else {
-                    (a.theta_i, a.theta_o)
-                };
-                Some(Raw {
-                    // Sort key: theta_i, theta_o, theta_h, theta_d (quantised).
-                    key: (q(lo), q(hi), q(a.theta_h), q(a.theta_d)),
-                    y: s.rgb,
-                    w: {
-                        let t = options.taper(a.theta_i.max(a.theta_o));
-                        s.rgb.map(|v| options.weight(v, ci) * t)
-                    },
-                    index: index as u32,
-                    swapped,
-                })
+                Some((sort_key(a), index as u32))
             })
             .collect();
-        stats.cut = stats.input - raws.len();
-        if raws.is_empty() {
+        stats.cut = stats.input - order.len();
+        if order.is_empty() {
             return Err(SampleError::Empty {
                 source_name: samples.source.clone(),
                 input: stats.input,
@@ -523,54 +526,83 @@ impl FitSet {
             });
         }
         // Order by theta_i then theta_o: the G control-point lists then read
-        // memory mostly forward. The sort is stable, so reciprocal partners
-        // (equal keys) end up adjacent and in input order.
-        raws.par_sort_by_key(|r| r.key);
-        // Merge reciprocal partners: each run of equal keys into its first,
-        // in input order, as a pass in input order would.
-        let mut offset = 0.0;
-        if merge {
-            let mut kept = 0;
-            // Each merged partner's share of the offset, summed in input order below.
-            let mut shares: Vec<(u32, [f64; 3])> = Vec::new();
-            for i in 0..raws.len() {
-                if kept > 0 && raws[kept - 1].key == raws[i].key {
-                    let r = raws[i];
-                    let m = &mut raws[kept - 1];
-                    let mut share = [0.0; 3];
-                    for (c, share) in share.iter_mut().enumerate() {
-                        let wsum = m.w[c] + r.w[c];
-                        if wsum > 0.0 {
-                            *share = m.w[c] * r.w[c] * (m.y[c] - r.y[c]).powi(2) / wsum;
-                            m.y[c] = (m.w[c] * m.y[c] + r.w[c] * r.y[c]) / wsum;
-                        }
-                        m.w[c] = wsum;
-                    }
-                    shares.push((r.index, share));
-                    stats.merged_pairs += 1;
-                } else {
-                    raws[kept] = raws[i];
-                    kept += 1;
+        // memory mostly forward. Ties are broken by the index, so reciprocal
+        // partners (equal keys) end up adjacent and in input order, as a
+        // stable sort would leave them.
+        order.par_sort_unstable();
+        let sorted = order;
+        let order: &[(u128, u32)] = &sorted;
+        // A sample's value and weights, recomputed from the input wherever
+        // they are needed (cheaper than carrying 48 bytes through the sort).
+        let value = |index: u32| {
+            let s = &samples.samples[index as usize];
+            let a = &s.angles;
+            let (ci, t) = (a.theta_i.cos(), options.taper(a.theta_i.max(a.theta_o)));
+            (s.rgb, s.rgb.map(|v| options.weight(v, ci) * t))
+        };
+        // Each run of equal keys is merged into its first member, folding
+        // the others in input order (one merged sample per run).
+        let starts: Vec<usize> = if merge {
+            (0..order.len())
+                .into_par_iter()
+                .filter(|&i| i == 0 || order[i - 1].0 != order[i].0)
+                .collect()
+        } else {
+            (0..order.len()).collect()
+        };
+        let starts_ref = &starts;
+        let run = move |g: usize| starts_ref[g]..starts_ref.get(g + 1).map_or(order.len(), |&e| e);
+        let n = starts.len();
+        stats.merged_pairs = order.len() - n;
+        stats.fitted = n;
+        // One pass over the runs: the merged value and weights, and for a
+        // pair (the usual run: a configuration and its reciprocal) the
+        // partner's share of the offset. Longer runs (rare) have their
+        // shares computed below.
+        let merged: Vec<([f64; 3], [f64; 3], [f64; 3])> = (0..n)
+            .into_par_iter()
+            .map(|g| {
+                let members = &order[run(g)];
+                let (mut y, mut w) = value(members[0].1);
+                let mut share = [0.0; 3];
+                for &(_, index) in &members[1..] {
+                    let (ry, rw) = value(index);
+                    share = merge_into(&mut y, &mut w, ry, rw);
                 }
-            }
-            raws.truncate(kept);
-            shares.sort_unstable_by_key(|s| s.0);
-            for (_, share) in shares {
-                for v in share {
-                    offset += v;
-                }
+                (y, w, share)
+            })
+            .collect();
+        // Each merged partner's share of the offset, summed in input order.
+        let mut shares: Vec<(u32, [f64; 3])> = (0..n)
+            .into_par_iter()
+            .filter(|&g| run(g).len() == 2)
+            .map(|g| (order[starts[g] + 1].1, merged[g].2))
+            .collect();
+        for g in (0..n).filter(|&g| run(g).len() > 2) {
+            let members = &order[run(g)];
+            let (mut y, mut w) = value(members[0].1);
+            for &(_, index) in &members[1..] {
+                let (ry, rw) = value(index);
+                shares.push((index, merge_into(&mut y, &mut w, ry, rw)));
             }
         }
-        let merged = raws;
-        stats.fitted = merged.len();
-        let n = merged.len();
+        shares.par_sort_unstable_by_key(|s| s.0);
+        let mut offset = 0.0;
+        for (_, share) in shares {
+            for v in share {
+                offset += v;
+            }
+        }
+        let y: Vec<[f64; 3]> = merged.par_iter().map(|m| m.0).collect();
+        let w: Vec<[f64; 3]> = merged.par_iter().map(|m| m.1).collect();
+        drop(merged);
         // Each merged sample's angles with theta_i <= theta_o, gathered once
         // in set order: the passes below then read memory forward.
-        let gathered: Vec<[f64; 8]> = merged
-            .par_iter()
-            .map(|r| {
-                let a = samples.samples[r.index as usize].angles;
-                let (ti, pi, to, po) = if r.swapped {
+        let gathered: Vec<[f64; 8]> = (0..n)
+            .into_par_iter()
+            .map(|g| {
+                let a = samples.samples[order[starts[g]].1 as usize].angles;
+                let (ti, pi, to, po) = if a.theta_i > a.theta_o {
                     (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
                 } else {
                     (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
@@ -578,6 +610,7 @@ impl FitSet {
                 [a.theta_h, a.phi_h, a.theta_d, a.phi_d, ti, pi, to, po]
             })
             .collect();
+        drop((sorted, starts));
         let angles = |j: usize| &gathered[j];
         let g_free = last_free_g_node(&layout, cut);
         let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
@@ -587,8 +620,8 @@ impl FitSet {
         let mut set = FitSet {
             layout,
             options,
-            y: merged.par_iter().map(|r| r.y).collect(),
-            w: merged.par_iter().map(|r| r.w).collect(),
+            y,
+            w,
             inv_cc: (0..n)
                 .into_par_iter()
                 .map(|j| {
@@ -625,7 +658,7 @@ impl FitSet {
             objective_offset: offset,
             stats,
         };
-        drop((merged, gathered));
+        drop(gathered);
         let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
         set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
         set.f_inc = Incidence::build(layout.f.len(), &set.f_st, &total_w);

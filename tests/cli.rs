@@ -100,6 +100,12 @@ fn malformed_tables_are_rejected_with_the_file_and_problem_named() {
         &npf(&["fit", "/nonexistent/x.binary", "-o", s(&out)]),
         "/nonexistent/x.binary",
     );
+    // An existing output too: the missing input is still what is reported.
+    std::fs::write(&out, b"kept").unwrap();
+    let o = npf(&["fit", "/nonexistent/x.binary", "-o", s(&out)]);
+    assert_fails(&o, "/nonexistent/x.binary");
+    assert!(!stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&out).unwrap(), b"kept");
 }
 
 #[test]

@@ -9,6 +9,7 @@ use npf::reconstruct::to_merl;
 use npf::samples::{FitSet, SampleOptions};
 use npf::solver::{init, Executor, FitOptions, FitResult, SweepReport};
 use npf::synth::{known_factor_model, GgxLambert};
+use std::borrow::Cow;
 
 #[path = "common/monotone.rs"]
 mod monotone;
@@ -35,7 +36,15 @@ fn coarse_fit(s: &MeasuredSamples, levels: &[usize], opts: FitOptions) -> FitRes
         factors: levels,
         tol: 1e-3,
     };
-    let f = fit(s, (layout, so), schedule, opts, start, &mut quiet).unwrap();
+    let f = fit(
+        Cow::Borrowed(s),
+        (layout, so),
+        schedule,
+        opts,
+        start,
+        &mut quiet,
+    )
+    .unwrap();
     assert_eq!(f.levels.len(), levels.iter().filter(|&&f| f > 1).count());
     for l in &f.levels {
         assert!(l.sweeps >= 1 && l.samples > 0, "{l:?}");
@@ -143,7 +152,15 @@ fn too_small_a_level_is_skipped() {
         factors: &[32],
         tol: 1e-3,
     };
-    let f = fit(&s, (layout, so), schedule, opts, start, &mut quiet).unwrap();
+    let f = fit(
+        Cow::Borrowed(&s),
+        (layout, so),
+        schedule,
+        opts,
+        start,
+        &mut quiet,
+    )
+    .unwrap();
     assert!(f.levels.is_empty());
     let set = FitSet::build(&s, layout, so).unwrap();
     let plain = Executor::new(&set, opts).run().unwrap();

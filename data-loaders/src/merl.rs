@@ -21,7 +21,7 @@ use byteorder::{ByteOrder, LittleEndian};
 
 use crate::atomic::write_atomic;
 use crate::error::LoadError;
-use crate::geometry::{directions_from_half_diff, Angles};
+use crate::geometry::{angles_of, directions_from_half_diff, Angles};
 use crate::planar;
 use crate::samples::{MeasuredSample, MeasuredSamples};
 
@@ -260,35 +260,75 @@ impl MerlTable {
     /// cos θo > 0, with φh = 0), as samples at the node angles with physical
     /// RGB. Missing cells and below-horizon cells are counted in `missing`,
     /// so `samples.len() + missing == CELLS`. Samples are in cell order.
+    ///
+    /// Built one θh row at a time in parallel (rayon's current pool) and
+    /// joined in row order, so the result is the same for any thread count.
     pub fn samples(&self, source: &str) -> MeasuredSamples {
-        let mut samples = Vec::with_capacity(self.valid_cells());
-        let mut missing = 0;
-        for i_th in 0..Self::RES_THETA_H {
-            for i_td in 0..Self::RES_THETA_D {
-                for i_pd in 0..Self::RES_PHI_D {
-                    let Some(rgb) = self.cell(Self::index(i_th, i_td, i_pd)) else {
-                        missing += 1;
-                        continue;
-                    };
-                    let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
-                    let (wi, wo) = directions_from_half_diff(th, 0.0, td, pd);
-                    if wi[2] <= 0.0 || wo[2] <= 0.0 {
-                        missing += 1;
-                        continue;
-                    }
-                    samples.push(MeasuredSample {
-                        angles: Angles::from_half_diff(th, 0.0, td, pd),
-                        rgb,
-                    });
-                }
-            }
+        use rayon::prelude::*;
+        const ROW: usize = MerlTable::RES_THETA_D * MerlTable::RES_PHI_D;
+        // Each row's samples are written to the front of its own slice of
+        // one buffer, then moved together in order: no second copy of the
+        // samples (128 MB) is ever held.
+        let zero = MeasuredSample {
+            angles: Angles::from_half_diff(0.0, 0.0, 0.0, 0.0),
+            rgb: [0.0; 3],
+        };
+        let mut samples = vec![zero; Self::CELLS];
+        let counts: Vec<(usize, usize)> = samples
+            .par_chunks_mut(ROW)
+            .enumerate()
+            .map(|(i_th, row)| self.row_samples(i_th, row))
+            .collect();
+        let (mut kept, mut missing) = (0, 0);
+        for (i_th, &(n, m)) in counts.iter().enumerate() {
+            samples.copy_within(i_th * ROW..i_th * ROW + n, kept);
+            kept += n;
+            missing += m;
         }
+        samples.truncate(kept);
+        samples.shrink_to_fit();
         MeasuredSamples {
             source: source.to_string(),
             isotropic: true,
             samples,
             missing,
         }
+    }
+
+    /// One θh row of [`MerlTable::samples`], written to the front of `out`
+    /// (the row's slots): how many samples it holds, and its missing count.
+    fn row_samples(&self, i_th: usize, out: &mut [MeasuredSample]) -> (usize, usize) {
+        let (mut n, mut missing) = (0, 0);
+        for i_td in 0..Self::RES_THETA_D {
+            for i_pd in 0..Self::RES_PHI_D {
+                let Some(rgb) = self.cell(Self::index(i_th, i_td, i_pd)) else {
+                    missing += 1;
+                    continue;
+                };
+                let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
+                let (wi, wo) = directions_from_half_diff(th, 0.0, td, pd);
+                if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                    missing += 1;
+                    continue;
+                }
+                // What `Angles::from_half_diff` computes, from the
+                // directions already at hand.
+                let ((theta_i, phi_i), (theta_o, phi_o)) = (angles_of(wi), angles_of(wo));
+                let angles = Angles {
+                    theta_h: th,
+                    phi_h: 0.0,
+                    theta_d: td,
+                    phi_d: pd,
+                    theta_i,
+                    phi_i,
+                    theta_o,
+                    phi_o,
+                };
+                out[n] = MeasuredSample { angles, rgb };
+                n += 1;
+            }
+        }
+        (n, missing)
     }
 }
 
@@ -322,6 +362,43 @@ mod tests {
         assert_eq!(MerlTable::index(89, 89, 179), MerlTable::CELLS - 1);
         assert_eq!(MerlTable::index(0, 1, 0), 180);
         assert_eq!(MerlTable::index(1, 0, 0), 180 * 90);
+    }
+
+    /// The parallel row build gives, for any thread count, exactly the
+    /// samples of a plain cell-order pass with `Angles::from_half_diff`.
+    #[test]
+    fn samples_match_a_serial_pass_for_any_thread_count() {
+        let table = MerlTable::from_fn(|th, td, pd| {
+            // Some missing cells, scattered over the rows.
+            ((th + 3.0 * td + pd).sin() > -0.8).then_some([th + 0.1, td + 0.2, pd + 0.3])
+        });
+        let mut expected = Vec::new();
+        let mut missing = 0;
+        for i_th in 0..MerlTable::RES_THETA_H {
+            for i_td in 0..MerlTable::RES_THETA_D {
+                for i_pd in 0..MerlTable::RES_PHI_D {
+                    let (th, td, pd) = MerlTable::node_angles(i_th, i_td, i_pd);
+                    let (wi, wo) = directions_from_half_diff(th, 0.0, td, pd);
+                    match table.cell(MerlTable::index(i_th, i_td, i_pd)) {
+                        Some(rgb) if wi[2] > 0.0 && wo[2] > 0.0 => expected.push(MeasuredSample {
+                            angles: Angles::from_half_diff(th, 0.0, td, pd),
+                            rgb,
+                        }),
+                        _ => missing += 1,
+                    }
+                }
+            }
+        }
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let got = pool.install(|| table.samples("t"));
+            assert_eq!(got.missing, missing);
+            assert_eq!(got.samples.len() + got.missing, MerlTable::CELLS);
+            assert!(got.samples == expected, "{threads} threads");
+        }
     }
 
     #[test]

@@ -311,6 +311,9 @@ pub fn run(args: FitArgs) -> CliResult {
     modelfile::Form::of(&args.output)?;
     let config = args.config.config(args.model);
     config.validate()?;
+    // The input first: a missing or unreadable table is the problem to
+    // report, not an output that happens to exist already.
+    npf_data_loaders::sniff::open_regular(&args.input, "a measured table")?;
     check_outputs(&[&args.output], &[&args.input], args.force)?;
     let fitted = fit_table(&args.input, &args.output, &args, &config, !args.quiet)?;
     if !args.quiet {
@@ -362,7 +365,16 @@ pub(super) fn fit_table(
                 None,
             )?
         }
-        (None, None) => fit_with_progress(&samples, config, verbose)?,
+        (None, None) => {
+            // The samples are freed during the fit (its peak memory) and
+            // made again from the table for the error measures.
+            let source = samples.source.clone();
+            let (bar, mut observer) = progress(config, verbose);
+            let fitted =
+                crate::fit::fit_owned(samples, || table.samples(&source), config, &mut observer)?;
+            bar.finish_and_clear();
+            fitted
+        }
     };
     drop(table);
     modelfile::write(

@@ -267,11 +267,7 @@ pub fn run(args: FitArgs) -> CliResult {
         // held them; hand them back, or the next table's fit (in other
         // arenas) would stack on them: 4 MERL tables peaked at 581 MB
         // instead of one fit's 434 MB.
-        #[cfg(all(target_os = "linux", target_env = "gnu"))]
-        // SAFETY: malloc_trim only releases free heap pages; it touches no live allocation.
-        unsafe {
-            libc::malloc_trim(0);
-        }
+        crate::memory::release_free();
     }
     bar.finish_and_clear();
 
