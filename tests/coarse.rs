@@ -36,15 +36,8 @@ fn coarse_fit(s: &MeasuredSamples, levels: &[usize], opts: FitOptions) -> FitRes
         factors: levels,
         tol: 1e-3,
     };
-    let f = fit(
-        Cow::Borrowed(s),
-        (layout, so),
-        schedule,
-        opts,
-        start,
-        &mut quiet,
-    )
-    .unwrap();
+    let borrowed = Cow::Borrowed(s);
+    let f = fit(borrowed, (layout, so), schedule, opts, start, &mut quiet).unwrap();
     assert_eq!(f.levels.len(), levels.iter().filter(|&&f| f > 1).count());
     for l in &f.levels {
         assert!(l.sweeps >= 1 && l.samples > 0, "{l:?}");
@@ -152,15 +145,8 @@ fn too_small_a_level_is_skipped() {
         factors: &[32],
         tol: 1e-3,
     };
-    let f = fit(
-        Cow::Borrowed(&s),
-        (layout, so),
-        schedule,
-        opts,
-        start,
-        &mut quiet,
-    )
-    .unwrap();
+    let borrowed = Cow::Borrowed(&s);
+    let f = fit(borrowed, (layout, so), schedule, opts, start, &mut quiet).unwrap();
     assert!(f.levels.is_empty());
     let set = FitSet::build(&s, layout, so).unwrap();
     let plain = Executor::new(&set, opts).run().unwrap();

@@ -55,15 +55,20 @@ fn known_three_lobe_model_is_fitted_back_below_1e_3() {
     assert!(res.model.validate().is_ok());
 }
 
+/// A copper-like GGX + Lambert BRDF.
+fn metal_ggx() -> GgxLambert {
+    GgxLambert {
+        kd: [0.05, 0.08, 0.12],
+        f0: [0.95, 0.64, 0.54],
+        alpha: 0.15,
+    }
+}
+
 /// The documented GGX + Lambert error (docs/fitting.md): an analytic BRDF is
 /// not exactly a factor model, so the bound is looser than for known factors.
 #[test]
 fn ggx_lambert_is_fitted_to_its_documented_error() {
-    let brdf = GgxLambert {
-        kd: [0.05, 0.08, 0.12],
-        f0: [0.95, 0.64, 0.54],
-        alpha: 0.15,
-    };
+    let brdf = metal_ggx();
     let samples = brdf.table().samples("ggx-lambert");
     let res = fit(&samples, FitOptions::default());
     let m = compare_model(&samples, 85.0, &res.model);
@@ -315,11 +320,7 @@ fn masked_scales_stay_exactly_zero() {
 /// is the plain sum of w y^2 over every input sample within the cut-off.
 #[test]
 fn the_merged_set_keeps_the_unmerged_objective() {
-    let brdf = GgxLambert {
-        kd: [0.05, 0.08, 0.12],
-        f0: [0.95, 0.64, 0.54],
-        alpha: 0.15,
-    };
+    let brdf = metal_ggx();
     let samples = thinned(&brdf.table(), 3);
     let so = SampleOptions::default();
     let set = FitSet::build(&samples, Layout::default(), so).unwrap();
