@@ -45,6 +45,11 @@ impl<'a> Directions<'a> {
         [self.x[j], self.y[j], self.z[j]]
     }
 
+    /// The three slices.
+    fn slices(&self) -> [&'a [f64]; 3] {
+        [self.x, self.y, self.z]
+    }
+
     /// The common length, or an error naming `what` when y or z differ.
     fn checked_len(&self, what: &'static str) -> Result<usize, BsdfError> {
         let n = self.x.len();
@@ -148,15 +153,14 @@ impl NpfBxdf {
         for o in &out {
             same_len("eval output", n, o.len())?;
         }
-        let [o0, o1, o2] = out;
-        let mut put = |j: usize, v: [f64; 3]| {
-            o0[j] = v[0];
-            o1[j] = v[1];
-            o2[j] = v[2];
-        };
         match self.flat() {
-            Some(f) => f.eval_each(n, |j| (wo.get(j), wi.get(j)), put),
-            None => (0..n).for_each(|j| put(j, self.eval(wo.get(j), wi.get(j)))),
+            Some(f) => f.eval_slices(wo.slices(), wi.slices(), out),
+            None => {
+                let [o0, o1, o2] = out;
+                for j in 0..n {
+                    [o0[j], o1[j], o2[j]] = self.eval(wo.get(j), wi.get(j));
+                }
+            }
         }
         Ok(())
     }
@@ -221,23 +225,23 @@ impl NpfBxdf {
             weight,
             component,
         } = out;
-        let wi = &*wi;
-        flat.eval_each(
-            n,
-            |j| (wo.get(j), [wi[0][j], wi[1][j], wi[2][j]]),
-            |j, v| {
-                if !(pdf[j] > 0.0) {
-                    return;
-                }
-                // BsdfSample::new's value and checks.
-                let s = BsdfSample::new([wi[0][j], wi[1][j], wi[2][j]], v, pdf[j], component[j]);
-                pdf[j] = s.pdf;
-                for c in 0..3 {
-                    f[c][j] = s.f[c];
-                    weight[c][j] = s.weight[c];
-                }
-            },
-        );
+        let [f0, f1, f2] = f;
+        flat.eval_slices(wo.slices(), [&wi[0], &wi[1], &wi[2]], [f0, f1, f2]);
+        for j in 0..n {
+            if !(pdf[j] > 0.0) {
+                // Lost: zero value, as the per-call sample reports it.
+                (0..3).for_each(|c| f[c][j] = 0.0);
+                continue;
+            }
+            // BsdfSample::new's weight and checks.
+            let w = [wi[0][j], wi[1][j], wi[2][j]];
+            let s = BsdfSample::new(w, [f[0][j], f[1][j], f[2][j]], pdf[j], component[j]);
+            pdf[j] = s.pdf;
+            for c in 0..3 {
+                f[c][j] = s.f[c];
+                weight[c][j] = s.weight[c];
+            }
+        }
         Ok(())
     }
 }

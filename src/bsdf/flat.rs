@@ -354,49 +354,47 @@ impl FlatEval {
         out
     }
 
-    /// [`FlatEval::eval`] over `n` pairs, four at a time: `pair(k)` gives
-    /// pair k, `put(k, f)` receives its value. AVX2 lanes where the CPU has
-    /// them (detected at run time), SSE2 pairs otherwise; the same values
-    /// either way.
-    #[inline]
-    pub(crate) fn eval_each(
-        &self,
-        n: usize,
-        pair: impl Fn(usize) -> (Vec3, Vec3),
-        put: impl FnMut(usize, [f64; 3]),
-    ) {
+    /// [`FlatEval::eval`] of every pair (wo[j], wi[j]) (components as
+    /// slices) into `out[c][j]`, four pairs at a time: AVX2 lanes where the
+    /// CPU has them (detected at run time), SSE2 pairs otherwise; the same
+    /// values either way. Every slice must have the length of `wo[0]`.
+    pub(crate) fn eval_slices(&self, wo: [&[f64]; 3], wi: [&[f64]; 3], out: [&mut [f64]; 3]) {
+        let n = wo[0].len();
+        assert!(
+            wo.iter().chain(&wi).all(|v| v.len() == n) && out.iter().all(|v| v.len() == n),
+            "eval_slices: slices of different lengths"
+        );
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
             #[target_feature(enable = "avx2")]
-            fn run(
-                f: &FlatEval,
-                n: usize,
-                pair: impl Fn(usize) -> (Vec3, Vec3),
-                put: impl FnMut(usize, [f64; 3]),
-            ) {
-                f.eval_each_in::<super::lanes::avx::F64x4>(n, pair, put)
+            fn run(f: &FlatEval, wo: [&[f64]; 3], wi: [&[f64]; 3], out: [&mut [f64]; 3]) {
+                f.eval_slices_in::<super::lanes::avx::F64x4>(wo, wi, out)
             }
             // SAFETY: AVX2 was detected just above.
-            return unsafe { run(self, n, pair, put) };
+            return unsafe { run(self, wo, wi, out) };
         }
-        self.eval_each_in::<F64x2x2>(n, pair, put)
+        self.eval_slices_in::<F64x2x2>(wo, wi, out)
     }
 
+    /// [`FlatEval::eval_slices`] in lane type V (slices of one length).
     #[inline(always)]
-    fn eval_each_in<V: Lanes4>(
-        &self,
-        n: usize,
-        pair: impl Fn(usize) -> (Vec3, Vec3),
-        mut put: impl FnMut(usize, [f64; 3]),
-    ) {
+    fn eval_slices_in<V: Lanes4>(&self, wo: [&[f64]; 3], wi: [&[f64]; 3], out: [&mut [f64]; 3]) {
+        let n = wo[0].len();
+        let [o0, o1, o2] = out;
         let mut k = 0;
         while k < n {
             // The last group repeats its final pair in its unused slots.
-            let at = |j: usize| pair((k + j).min(n - 1));
-            let p = [at(0), at(1), at(2), at(3)];
-            let f = self.eval4::<V>(p.map(|p| p.0), p.map(|p| p.1));
-            for (j, v) in f.into_iter().enumerate().take(n - k) {
-                put(k + j, v);
+            let at = |v: [&[f64]; 3], j: usize| {
+                let j = (k + j).min(n - 1);
+                [v[0][j], v[1][j], v[2][j]]
+            };
+            let o = [at(wo, 0), at(wo, 1), at(wo, 2), at(wo, 3)];
+            let i = [at(wi, 0), at(wi, 1), at(wi, 2), at(wi, 3)];
+            let f = self.eval4::<V>(o, i);
+            for (j, v) in f.iter().enumerate().take(n - k) {
+                o0[k + j] = v[0];
+                o1[k + j] = v[1];
+                o2[k + j] = v[2];
             }
             k += 4;
         }
