@@ -102,15 +102,36 @@ impl FlatTable {
     /// same operations, so the same values).
     #[inline(always)]
     fn eval_v<V: Lanes4>(&self, theta: f64, x: f64) -> V {
+        let p = match self.axis {
+            Axis::SqrtAngle { .. } => x.sqrt() * self.scale,
+            Axis::Uniform { .. } | Axis::CatmullRom { .. } => x * self.scale,
+            Axis::Squared { .. } | Axis::Closed { .. } => self.axis.coord(theta),
+        };
+        self.eval_at(p)
+    }
+
+    /// The axis coordinates of [`FlatTable::eval_v`] for four angles at
+    /// once (x their `theta / (pi/2)`, clamped, in lanes): the same
+    /// operations lane by lane.
+    #[inline(always)]
+    fn coords<V: Lanes4>(&self, theta: &[f64; 4], x: V) -> [f64; 4] {
         match self.axis {
-            Axis::SqrtAngle { n } => self.lerp(linear(x.sqrt() * self.scale, n)),
-            Axis::Uniform { n } => self.lerp(linear(x * self.scale, n)),
-            Axis::Squared { n } | Axis::Closed { n } => {
-                self.lerp(linear(self.axis.coord(theta), n))
-            }
+            Axis::SqrtAngle { .. } => (x.sqrt() * V::splat(self.scale)).to_array(),
+            Axis::Uniform { .. } | Axis::CatmullRom { .. } => (x * V::splat(self.scale)).to_array(),
+            Axis::Squared { .. } | Axis::Closed { .. } => theta.map(|t| self.axis.coord(t)),
+        }
+    }
+
+    /// Every lane's value at axis coordinate p (see [`FlatTable::coords`]).
+    #[inline(always)]
+    fn eval_at<V: Lanes4>(&self, p: f64) -> V {
+        match self.axis {
+            Axis::SqrtAngle { n }
+            | Axis::Uniform { n }
+            | Axis::Squared { n }
+            | Axis::Closed { n } => self.lerp(linear(p, n)),
             Axis::CatmullRom { .. } => {
                 // floor, at most n - 2 (the last interval; x <= 1).
-                let p = x * self.scale;
                 let i = floor_index(p).min(self.cubic.len() - 1);
                 let t = V::splat((p - i as u32 as f64).clamp(0.0, 1.0));
                 // Horner's rule on the power-basis coefficients.
@@ -329,16 +350,19 @@ impl FlatEval {
         let c_d = (ix * s0 + iy * s1 + iz * s2) / n;
         let ((t_h, x_h), (t_d, x_d)) = (angle_and_x(c_h), angle_and_x(c_d));
         let ((t_i, x_i), (t_o, x_o)) = (angle_and_x(iz), angle_and_x(oz));
+        // The axis coordinates in lanes too (D's square root among them).
+        let (p_h, p_d) = (self.d.coords(&t_h, x_h), self.f.coords(&t_d, x_d));
+        let (p_i, p_o) = (self.g.coords(&t_i, x_i), self.g.coords(&t_o, x_o));
         let inv_cc = (one / (iz.min(one) * oz.min(one))).to_array();
         let mut out = [[0.0; 3]; 4];
         for k in 0..4 {
             if !valid[k] {
                 continue;
             }
-            let d: V = self.d.eval_v(t_h[k], x_h[k]);
-            let f: V = self.f.eval_v(t_d[k], x_d[k]);
-            let gi: V = self.g.eval_v(t_i[k], x_i[k]);
-            let go: V = self.g.eval_v(t_o[k], x_o[k]);
+            let d: V = self.d.eval_at(p_h[k]);
+            let f: V = self.f.eval_at(p_d[k]);
+            let gi: V = self.g.eval_at(p_i[k]);
+            let go: V = self.g.eval_at(p_o[k]);
             let spec = (d * (gi * go * V::splat(inv_cc[k]))).to_array();
             // Channels in lanes, the lobe terms summed pairwise (eval's
             // order).
@@ -414,13 +438,10 @@ fn column<V: Lanes4>(v: &[Vec3; 4], valid: &[bool; 4], c: usize) -> V {
 /// The angle of each lane's cosine (clamped to [0, 1]) and x = angle /
 /// (pi/2) clamped to [0, 1], as `FlatEval::eval` computes them.
 #[inline(always)]
-fn angle_and_x<V: Lanes4>(c: V) -> ([f64; 4], [f64; 4]) {
+fn angle_and_x<V: Lanes4>(c: V) -> ([f64; 4], V) {
     let (zero, one) = (V::splat(0.0), V::splat(1.0));
     let t = acos_lanes(c.max(zero).min(one));
-    (
-        t.to_array(),
-        (t * V::splat(FRAC_2_PI)).max(zero).min(one).to_array(),
-    )
+    (t.to_array(), (t * V::splat(FRAC_2_PI)).max(zero).min(one))
 }
 
 // fdlibm's high part of pi/2 is the f64 nearest pi/2.
@@ -651,15 +672,28 @@ mod tests {
 
     fn check_eval4<V: Lanes4>(f: &FlatEval, pairs: &[(Vec3, Vec3)]) {
         for len in [0, 1, 3, 4, 5, pairs.len()] {
-            let mut out = vec![[f64::NAN; 3]; len];
-            f.eval_each_in::<V>(len, |k| pairs[k], |k, v| out[k] = v);
+            let col = |w: usize, c: usize| -> Vec<f64> {
+                pairs[..len]
+                    .iter()
+                    .map(|p| if w == 0 { p.0[c] } else { p.1[c] })
+                    .collect()
+            };
+            let (wo, wi) = ([0, 1, 2].map(|c| col(0, c)), [0, 1, 2].map(|c| col(1, c)));
+            let mut out = [
+                vec![f64::NAN; len],
+                vec![f64::NAN; len],
+                vec![f64::NAN; len],
+            ];
+            let [a, b, c] = &mut out;
+            f.eval_slices_in::<V>(
+                [&wo[0], &wo[1], &wo[2]],
+                [&wi[0], &wi[1], &wi[2]],
+                [a, b, c],
+            );
             for (k, &(wo, wi)) in pairs[..len].iter().enumerate() {
                 let e = f.eval(wo, wi);
-                assert_eq!(
-                    out[k].map(f64::to_bits),
-                    e.map(f64::to_bits),
-                    "{wo:?} {wi:?}"
-                );
+                let got = [out[0][k], out[1][k], out[2][k]];
+                assert_eq!(got.map(f64::to_bits), e.map(f64::to_bits), "{wo:?} {wi:?}");
             }
         }
     }
