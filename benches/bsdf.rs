@@ -9,6 +9,8 @@
 //! the repository). Inputs are 1024 fixed random views (theta_o up to 80
 //! degrees) and directions: `eval` and `pdf` on pairs drawn by the sampler
 //! itself (where renderers evaluate), `sample` on random numbers.
+//! `eval_batch` and `sample_batch` make the same calls through the batch
+//! interface (structure of arrays, four pairs at a time).
 //!
 //! Time is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID` on Linux), not
 //! wall time: the build machine is shared, and CPU time is what a core
