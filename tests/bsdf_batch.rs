@@ -128,5 +128,5 @@ fn slices_of_different_lengths_are_an_error() {
         y: &c,
         z: &a,
     };
-    assert!(b.pdf_batch(bad, d4, &mut vec![0.0; 4]).is_err());
+    assert!(b.pdf_batch(bad, d4, &mut [0.0; 4]).is_err());
 }

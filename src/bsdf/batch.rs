@@ -198,14 +198,16 @@ impl NpfBxdf {
             same_len("random numbers", n, v.len())?;
         }
         out.clear();
+        // (u_lobe, [u0, u1]) of draw j, in order.
+        let us = u[0].iter().zip(u[1].iter().zip(u[2])).enumerate();
         let Some(flat) = self.flat() else {
-            for j in 0..n {
-                out.push(self.sample(wo.get(j), u[0][j], [u[1][j], u[2][j]]));
+            for (j, (&uc, (&u0, &u1))) in us {
+                out.push(self.sample(wo.get(j), uc, [u0, u1]));
             }
             return Ok(());
         };
-        for j in 0..n {
-            let s = match self.draw(wo.get(j), u[0][j], [u[1][j], u[2][j]]) {
+        for (j, (&uc, (&u0, &u1))) in us {
+            let s = match self.draw(wo.get(j), uc, [u0, u1]) {
                 // The value comes below; pdf and wi as drawn for now.
                 Ok((wi, pdf, component)) => BsdfSample {
                     wi,
