@@ -9,6 +9,8 @@
 //! the repository). Inputs are 1024 fixed random views (theta_o up to 80
 //! degrees) and directions: `eval` and `pdf` on pairs drawn by the sampler
 //! itself (where renderers evaluate), `sample` on random numbers.
+//! `eval_batch` and `sample_batch` make the same calls through the batch
+//! interface (structure of arrays, four pairs at a time).
 //!
 //! Time is the thread's CPU time (`CLOCK_THREAD_CPUTIME_ID` on Linux), not
 //! wall time: the build machine is shared, and CPU time is what a core
@@ -17,7 +19,7 @@
 
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use npf::bsdf::NpfBxdf;
+use npf::bsdf::{Directions, NpfBxdf, SampleBatch};
 use npf::model::{Layout, Model};
 
 #[path = "common/bsdf_inputs.rs"]
@@ -145,6 +147,29 @@ fn bench(c: &mut Criterion<CpuTime>) {
             acc
         })
     });
+    // The batch interface on the same pairs, structure of arrays.
+    let soa = |v: &mut dyn Iterator<Item = [f64; 3]>| {
+        let mut d = [vec![], vec![], vec![]];
+        for x in v {
+            (0..3).for_each(|c| d[c].push(x[c]));
+        }
+        d
+    };
+    let (wo_s, wi_s) = (
+        soa(&mut pairs.iter().map(|p| p.0)),
+        soa(&mut pairs.iter().map(|p| p.1)),
+    );
+    let wo_d = Directions::new(&wo_s[0], &wo_s[1], &wo_s[2]).unwrap();
+    let wi_d = Directions::new(&wi_s[0], &wi_s[1], &wi_s[2]).unwrap();
+    let mut out = [vec![0.0; BATCH], vec![0.0; BATCH], vec![0.0; BATCH]];
+    g.bench_function("eval_batch", |bench| {
+        bench.iter(|| {
+            let [a, b1, c] = &mut out;
+            b.eval_batch(black_box(wo_d), black_box(wi_d), [a, b1, c])
+                .unwrap();
+            out[1].iter().sum::<f64>()
+        })
+    });
     g.bench_function("pdf", |bench| {
         bench.iter(|| {
             let mut acc = 0.0;
@@ -170,6 +195,17 @@ fn bench(c: &mut Criterion<CpuTime>) {
                 acc += b.sample(black_box(*wo), u[0], [u[1], u[2]]).weight[1];
             }
             acc
+        })
+    });
+    let views = soa(&mut wos.iter().copied());
+    let views = Directions::new(&views[0], &views[1], &views[2]).unwrap();
+    let u_s: [Vec<f64>; 3] = std::array::from_fn(|c| us.iter().map(|u| u[c]).collect());
+    let mut draws = SampleBatch::default();
+    g.bench_function("sample_batch", |bench| {
+        bench.iter(|| {
+            b.sample_batch(black_box(views), [&u_s[0], &u_s[1], &u_s[2]], &mut draws)
+                .unwrap();
+            draws.weight[1].iter().sum::<f64>()
         })
     });
     // The same draws at one view (theta_o 40 degrees): the sampler's

@@ -163,6 +163,13 @@ impl NpfBxdf {
         Ok(bxdf)
     }
 
+    /// The flat evaluator, when the model has one (isotropic, at most
+    /// FLAT_LOBES lobes, the plain form); then the model has no
+    /// anisotropic sampler either.
+    pub(crate) fn flat(&self) -> Option<&FlatEval> {
+        self.flat.as_ref()
+    }
+
     /// The model the tables were built for.
     pub fn model(&self) -> &Model {
         &self.model
@@ -493,8 +500,23 @@ impl NpfBxdf {
         if let Some(a) = &self.aniso {
             return a.sample(&self.model, wo, u_lobe, u);
         }
+        match self.draw(wo, u_lobe, u) {
+            Ok((wi, pdf, component)) => BsdfSample::new(wi, self.eval(wo, wi), pdf, component),
+            Err(lost) => lost,
+        }
+    }
+
+    /// The draw of [`NpfBxdf::sample`] for an isotropic model without its
+    /// value: (wi, pdf, component), or the lost sample.
+    #[inline]
+    pub(crate) fn draw(
+        &self,
+        wo: Vec3,
+        u_lobe: f64,
+        u: [f64; 2],
+    ) -> Result<(Vec3, f64, Component), BsdfSample> {
         if !(wo[2] > 0.0) {
-            return BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
+            return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         }
         let nc = self.components();
         let row = self.selection_row(wo[2]);
@@ -514,12 +536,12 @@ impl NpfBxdf {
             }
         }
         let Some(c) = component.or(last) else {
-            return BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse);
+            return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         };
         let (wi, component, pdf) = if c == 0 {
             let wi = cosine_hemisphere(u);
             if !(wi[2] > 0.0) {
-                return BsdfSample::lost(wi, Component::Diffuse);
+                return Err(BsdfSample::lost(wi, Component::Diffuse));
             }
             (wi, Component::Diffuse, self.pdf_at(wo, wi, row))
         } else {
@@ -529,7 +551,7 @@ impl NpfBxdf {
             let wi = reflect(wo, h);
             let wo_h = dot(wo, h);
             if !(wo_h > 0.0 && wi[2] > 0.0) {
-                return BsdfSample::lost(wi, Component::Lobe(m));
+                return Err(BsdfSample::lost(wi, Component::Lobe(m)));
             }
             // The drawn cell is where pdf finds wi's half vector (up to
             // rounding at a cell edge): its density row serves directly.
@@ -543,9 +565,9 @@ impl NpfBxdf {
             (wi, Component::Lobe(m), pdf)
         };
         if !(pdf > 0.0) {
-            return BsdfSample::lost(wi, component);
+            return Err(BsdfSample::lost(wi, component));
         }
-        BsdfSample::new(wi, self.eval(wo, wi), pdf, component)
+        Ok((wi, pdf, component))
     }
 
     /// Probability that [`NpfBxdf::sample`] returns a draw below the

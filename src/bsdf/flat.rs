@@ -14,6 +14,7 @@
 #![allow(clippy::excessive_precision)]
 
 use super::f64x2::{floor_index, F64x2};
+use super::lanes::{F64x2x2, Lanes, Lanes4};
 use crate::grid::axis::linear_weights;
 use crate::grid::Axis;
 use crate::model::Model;
@@ -94,32 +95,57 @@ impl FlatTable {
     /// Catmull-Rom spline in its power basis, equal up to rounding).
     #[inline(always)]
     fn eval(&self, theta: f64, x: f64) -> [F64x2; 2] {
+        self.eval_v::<F64x2x2>(theta, x).0
+    }
+
+    /// [`FlatTable::eval`] in any four-lane type (lane l = row lane l; the
+    /// same operations, so the same values).
+    #[inline(always)]
+    fn eval_v<V: Lanes4>(&self, theta: f64, x: f64) -> V {
+        let p = match self.axis {
+            Axis::SqrtAngle { .. } => x.sqrt() * self.scale,
+            Axis::Uniform { .. } | Axis::CatmullRom { .. } => x * self.scale,
+            Axis::Squared { .. } | Axis::Closed { .. } => self.axis.coord(theta),
+        };
+        self.eval_at(p)
+    }
+
+    /// The axis coordinates of [`FlatTable::eval_v`] for four angles at
+    /// once (x their `theta / (pi/2)`, clamped, in lanes): the same
+    /// operations lane by lane.
+    #[inline(always)]
+    fn coords<V: Lanes4>(&self, theta: &[f64; 4], x: V) -> [f64; 4] {
         match self.axis {
-            Axis::SqrtAngle { n } => self.lerp(linear(x.sqrt() * self.scale, n)),
-            Axis::Uniform { n } => self.lerp(linear(x * self.scale, n)),
-            Axis::Squared { n } | Axis::Closed { n } => {
-                self.lerp(linear(self.axis.coord(theta), n))
-            }
+            Axis::SqrtAngle { .. } => (x.sqrt() * V::splat(self.scale)).to_array(),
+            Axis::Uniform { .. } | Axis::CatmullRom { .. } => (x * V::splat(self.scale)).to_array(),
+            Axis::Squared { .. } | Axis::Closed { .. } => theta.map(|t| self.axis.coord(t)),
+        }
+    }
+
+    /// Every lane's value at axis coordinate p (see [`FlatTable::coords`]).
+    #[inline(always)]
+    fn eval_at<V: Lanes4>(&self, p: f64) -> V {
+        match self.axis {
+            Axis::SqrtAngle { n }
+            | Axis::Uniform { n }
+            | Axis::Squared { n }
+            | Axis::Closed { n } => self.lerp(linear(p, n)),
             Axis::CatmullRom { .. } => {
                 // floor, at most n - 2 (the last interval; x <= 1).
-                let p = x * self.scale;
                 let i = floor_index(p).min(self.cubic.len() - 1);
-                let t = F64x2::splat((p - i as u32 as f64).clamp(0.0, 1.0));
+                let t = V::splat((p - i as u32 as f64).clamp(0.0, 1.0));
+                // Horner's rule on the power-basis coefficients.
                 let c = &self.cubic[i];
-                [cubic_lanes(c, 0, t), cubic_lanes(c, 2, t)]
+                ((V::load(&c[3]) * t + V::load(&c[2])) * t + V::load(&c[1])) * t + V::load(&c[0])
             }
         }
     }
 
     /// A two-node stencil (base row, weights) applied to every lane.
     #[inline(always)]
-    fn lerp(&self, (base, w0, w1): (usize, f64, f64)) -> [F64x2; 2] {
+    fn lerp<V: Lanes4>(&self, (base, w0, w1): (usize, f64, f64)) -> V {
         let r = &self.rows[base..base + 2];
-        let (w0, w1) = (F64x2::splat(w0), F64x2::splat(w1));
-        [
-            w0 * pair(&r[0], 0) + w1 * pair(&r[1], 0),
-            w0 * pair(&r[0], 2) + w1 * pair(&r[1], 2),
-        ]
+        V::splat(w0) * V::load(&r[0]) + V::splat(w1) * V::load(&r[1])
     }
 
     /// The interpolated value of every lane at angle theta (the scalar form
@@ -130,23 +156,6 @@ impl FlatTable {
         let [a, b] = self.eval(theta, x);
         [a.lo(), a.hi(), b.lo(), b.hi()]
     }
-}
-
-/// Lanes (l, l + 1) of a row, l = 0 or 2.
-#[inline(always)]
-fn pair(r: &[f64; FLAT_LOBES], l: usize) -> F64x2 {
-    const _: () = assert!(FLAT_LOBES == 4, "rows are two lane pairs");
-    if l == 0 {
-        F64x2::load_lo(r)
-    } else {
-        F64x2::load_hi(r)
-    }
-}
-
-/// Lanes (l, l + 1) of a power-basis cubic at t, by Horner's rule.
-#[inline(always)]
-fn cubic_lanes(c: &[[f64; FLAT_LOBES]; 4], l: usize, t: F64x2) -> F64x2 {
-    ((pair(&c[3], l) * t + pair(&c[2], l)) * t + pair(&c[1], l)) * t + pair(&c[0], l)
 }
 
 /// The Catmull-Rom weights of `grid::axis` on interval i of n nodes as
@@ -197,6 +206,10 @@ pub struct FlatEval {
     s: [[f64; 3]; FLAT_LOBES],
     /// s[m][0] and s[m][1] as lanes.
     s01: [F64x2; FLAT_LOBES],
+    /// s[m] as four lanes (channels, then 0), for [`FlatEval::eval4`].
+    s4: [[f64; 4]; FLAT_LOBES],
+    /// The diffuse albedo as four lanes (channels, then 0).
+    diffuse4: [f64; 4],
     d: FlatTable,
     g: FlatTable,
     f: FlatTable,
@@ -230,6 +243,11 @@ impl FlatEval {
             diffuse: model.diffuse.map(f64::from),
             s,
             s01: s.map(|v| F64x2::new(v[0], v[1])),
+            s4: s.map(|v| [v[0], v[1], v[2], 0.0]),
+            diffuse4: {
+                let d = model.diffuse.map(f64::from);
+                [d[0], d[1], d[2], 0.0]
+            },
             d: FlatTable::new(l.d.theta, &d),
             g: FlatTable::new(l.g.theta, &g),
             f: FlatTable::new(l.f.theta, &f),
@@ -300,6 +318,132 @@ impl FlatEval {
     }
 }
 
+impl FlatEval {
+    /// [`FlatEval::eval`] of four direction pairs at once, with exactly
+    /// its values (bit for bit, tested): the angles of the four pairs in
+    /// four lanes (one arccosine chain serves four directions, and the
+    /// four pairs' chains are independent, so their latencies overlap),
+    /// then each pair's tables and lobe sum with the four lobes (or
+    /// channels) in four lanes. The per-lane operations and their order
+    /// are those of `eval`; only the grouping into lanes differs. `V` is
+    /// [`F64x2x2`] (SSE2 pairs) or, inside an AVX2 function, AVX lanes.
+    // No closures below: a closure is compiled as its own function,
+    // without the AVX2 target feature of the caller, and its AVX lanes
+    // would then be calls instead of instructions.
+    #[inline(always)]
+    pub(crate) fn eval4<V: Lanes4>(&self, wo: [Vec3; 4], wi: [Vec3; 4]) -> [[f64; 3]; 4] {
+        let valid = [0, 1, 2, 3].map(|k| wi[k][2] > 0.0 && wo[k][2] > 0.0);
+        let (ox, oy, oz) = (
+            column::<V>(&wo, &valid, 0),
+            column::<V>(&wo, &valid, 1),
+            column::<V>(&wo, &valid, 2),
+        );
+        let (ix, iy, iz) = (
+            column::<V>(&wi, &valid, 0),
+            column::<V>(&wi, &valid, 1),
+            column::<V>(&wi, &valid, 2),
+        );
+        let (s0, s1, s2) = (ix + ox, iy + oy, iz + oz);
+        let n = (s0 * s0 + s1 * s1 + s2 * s2).sqrt();
+        let one = V::splat(1.0);
+        let c_h = s2 / n;
+        let c_d = (ix * s0 + iy * s1 + iz * s2) / n;
+        let ((t_h, x_h), (t_d, x_d)) = (angle_and_x(c_h), angle_and_x(c_d));
+        let ((t_i, x_i), (t_o, x_o)) = (angle_and_x(iz), angle_and_x(oz));
+        // The axis coordinates in lanes too (D's square root among them).
+        let (p_h, p_d) = (self.d.coords(&t_h, x_h), self.f.coords(&t_d, x_d));
+        let (p_i, p_o) = (self.g.coords(&t_i, x_i), self.g.coords(&t_o, x_o));
+        let inv_cc = (one / (iz.min(one) * oz.min(one))).to_array();
+        let mut out = [[0.0; 3]; 4];
+        for k in 0..4 {
+            if !valid[k] {
+                continue;
+            }
+            let d: V = self.d.eval_at(p_h[k]);
+            let f: V = self.f.eval_at(p_d[k]);
+            let gi: V = self.g.eval_at(p_i[k]);
+            let go: V = self.g.eval_at(p_o[k]);
+            let spec = (d * (gi * go * V::splat(inv_cc[k]))).to_array();
+            // Channels in lanes, the lobe terms summed pairwise (eval's
+            // order).
+            let s = &self.s4;
+            let t0 = V::load(&s[0]) * f * V::splat(spec[0]);
+            let t1 = V::load(&s[1]) * f * V::splat(spec[1]);
+            let t2 = V::load(&s[2]) * f * V::splat(spec[2]);
+            let t3 = V::load(&s[3]) * f * V::splat(spec[3]);
+            let v = V::load(&self.diffuse4) + ((t0 + t1) + (t2 + t3));
+            let v = v.max(V::splat(0.0)).to_array();
+            out[k] = [v[0], v[1], v[2]];
+        }
+        out
+    }
+
+    /// [`FlatEval::eval`] of every pair (wo[j], wi[j]) (components as
+    /// slices) into `out[c][j]`, four pairs at a time: AVX2 lanes where the
+    /// CPU has them (detected at run time), SSE2 pairs otherwise; the same
+    /// values either way. Every slice must have the length of `wo[0]`.
+    pub(crate) fn eval_slices(&self, wo: [&[f64]; 3], wi: [&[f64]; 3], out: [&mut [f64]; 3]) {
+        let n = wo[0].len();
+        assert!(
+            wo.iter().chain(&wi).all(|v| v.len() == n) && out.iter().all(|v| v.len() == n),
+            "eval_slices: slices of different lengths"
+        );
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn run(f: &FlatEval, wo: [&[f64]; 3], wi: [&[f64]; 3], out: [&mut [f64]; 3]) {
+                f.eval_slices_in::<super::lanes::avx::F64x4>(wo, wi, out)
+            }
+            // SAFETY: AVX2 was detected just above.
+            return unsafe { run(self, wo, wi, out) };
+        }
+        self.eval_slices_in::<F64x2x2>(wo, wi, out)
+    }
+
+    /// [`FlatEval::eval_slices`] in lane type V (slices of one length).
+    #[inline(always)]
+    fn eval_slices_in<V: Lanes4>(&self, wo: [&[f64]; 3], wi: [&[f64]; 3], out: [&mut [f64]; 3]) {
+        let n = wo[0].len();
+        let [o0, o1, o2] = out;
+        let mut k = 0;
+        while k < n {
+            // The last group repeats its final pair in its unused slots.
+            let at = |v: [&[f64]; 3], j: usize| {
+                let j = (k + j).min(n - 1);
+                [v[0][j], v[1][j], v[2][j]]
+            };
+            let o = [at(wo, 0), at(wo, 1), at(wo, 2), at(wo, 3)];
+            let i = [at(wi, 0), at(wi, 1), at(wi, 2), at(wi, 3)];
+            let f = self.eval4::<V>(o, i);
+            for (j, v) in f.iter().enumerate().take(n - k) {
+                o0[k + j] = v[0];
+                o1[k + j] = v[1];
+                o2[k + j] = v[2];
+            }
+            k += 4;
+        }
+    }
+}
+
+/// Component c of four directions as lanes, the normal in place of the
+/// invalid ones (so that their arithmetic stays finite and their table
+/// rows in bounds; their results are replaced by 0).
+#[inline(always)]
+fn column<V: Lanes4>(v: &[Vec3; 4], valid: &[bool; 4], c: usize) -> V {
+    let normal = [0.0, 0.0, 1.0][c];
+    let at = |k: usize| if valid[k] { v[k][c] } else { normal };
+    V::load(&[at(0), at(1), at(2), at(3)])
+}
+
+/// The angle of each lane's cosine (clamped to [0, 1]) and x = angle /
+/// (pi/2) clamped to [0, 1], as `FlatEval::eval` computes them.
+#[inline(always)]
+fn angle_and_x<V: Lanes4>(c: V) -> ([f64; 4], V) {
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
+    let t = acos_lanes(c.max(zero).min(one));
+    (t.to_array(), (t * V::splat(FRAC_2_PI)).max(zero).min(one))
+}
+
 // fdlibm's high part of pi/2 is the f64 nearest pi/2.
 const PIO2_HI: f64 = std::f64::consts::FRAC_PI_2;
 const PIO2_LO: f64 = 6.123_233_995_736_766_035_87e-17;
@@ -362,26 +506,33 @@ pub fn acos(x: f64) -> f64 {
 
 /// [`asin_r`] lane by lane.
 #[inline(always)]
-fn asin_r2(z: F64x2) -> F64x2 {
-    let c = F64x2::splat;
+fn asin_r_lanes<V: Lanes>(z: V) -> V {
+    let c = V::splat;
     let p = z * (c(PS0) + z * (c(PS1) + z * (c(PS2) + z * (c(PS3) + z * (c(PS4) + z * c(PS5))))));
     let q = c(1.0) + z * (c(QS1) + z * (c(QS2) + z * (c(QS3) + z * c(QS4))));
     p / q
 }
 
-/// [`acos`] of two values in [0, 1] at once, without branches: the same
+/// [`acos`] of two values in [0, 1] at once, without branches (see
+/// [`acos_lanes`]).
+#[inline(always)]
+pub(crate) fn acos2(x: F64x2) -> F64x2 {
+    acos_lanes(x)
+}
+
+/// [`acos`] lane by lane for values in [0, 1], without branches: the same
 /// rational approximation, without fdlibm's extra-precision split of the
 /// square root (one division less; error a few ulps, tested). Inputs
 /// outside [0, 1] must be clamped by the caller.
 #[inline(always)]
-pub(crate) fn acos2(x: F64x2) -> F64x2 {
-    let half = F64x2::splat(0.5);
-    let zl = (F64x2::splat(1.0) - x) * half;
+pub(crate) fn acos_lanes<V: Lanes>(x: V) -> V {
+    let half = V::splat(0.5);
+    let zl = (V::splat(1.0) - x) * half;
     let z = x.lt_select(half, x * x, zl);
     let a = x.lt_select(half, x, zl.sqrt());
-    let w = a * asin_r2(z);
-    let small = F64x2::splat(PIO2_HI) - (a - (F64x2::splat(PIO2_LO) - w));
-    let large = F64x2::splat(2.0) * (a + w);
+    let w = a * asin_r_lanes(z);
+    let small = V::splat(PIO2_HI) - (a - (V::splat(PIO2_LO) - w));
+    let large = V::splat(2.0) * (a + w);
     x.lt_select(half, small, large)
 }
 
@@ -490,5 +641,87 @@ mod tests {
             }
         }
         assert!(worst <= 1e-9, "worst relative difference {worst}");
+    }
+
+    /// Pairs for the batch tests: random directions over the whole sphere
+    /// (so some below the horizon), near-normal and grazing ones.
+    fn batch_pairs(n: usize) -> Vec<(Vec3, Vec3)> {
+        let dir = |a: f64, b: f64| {
+            let z = 2.0 * a - 1.0;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let p = b * std::f64::consts::TAU;
+            [r * p.cos(), r * p.sin(), z]
+        };
+        (0..n)
+            .map(|k| {
+                let a = k as f64 * 0.618_033_988_749_895;
+                match k % 7 {
+                    0 => ([0.0, 0.0, 1.0], dir(0.999 + 0.001 * a.fract(), a * 3.1)),
+                    1 => (
+                        dir(1e-4 * a.fract(), a),
+                        dir(0.5 + 0.5 * (a * 2.3).fract(), a),
+                    ),
+                    _ => (
+                        dir((a * 7.1).fract(), (a * 3.7).fract()),
+                        dir((a * 5.3).fract(), (a * 1.3).fract()),
+                    ),
+                }
+            })
+            .collect()
+    }
+
+    fn check_eval4<V: Lanes4>(f: &FlatEval, pairs: &[(Vec3, Vec3)]) {
+        for len in [0, 1, 3, 4, 5, pairs.len()] {
+            let col = |w: usize, c: usize| -> Vec<f64> {
+                pairs[..len]
+                    .iter()
+                    .map(|p| if w == 0 { p.0[c] } else { p.1[c] })
+                    .collect()
+            };
+            let (wo, wi) = ([0, 1, 2].map(|c| col(0, c)), [0, 1, 2].map(|c| col(1, c)));
+            let mut out = [
+                vec![f64::NAN; len],
+                vec![f64::NAN; len],
+                vec![f64::NAN; len],
+            ];
+            let [a, b, c] = &mut out;
+            f.eval_slices_in::<V>(
+                [&wo[0], &wo[1], &wo[2]],
+                [&wi[0], &wi[1], &wi[2]],
+                [a, b, c],
+            );
+            for (k, &(wo, wi)) in pairs[..len].iter().enumerate() {
+                let e = f.eval(wo, wi);
+                let got = [out[0][k], out[1][k], out[2][k]];
+                assert_eq!(got.map(f64::to_bits), e.map(f64::to_bits), "{wo:?} {wi:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn four_pairs_at_once_equal_one_at_a_time_bit_for_bit() {
+        let pairs = batch_pairs(5003);
+        let mut squared = Layout::isotropic(45);
+        squared.d = crate::grid::Grid::line(Axis::Squared { n: 45 });
+        squared.f = crate::grid::Grid::line(Axis::Closed { n: 30 });
+        let models = [
+            known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]),
+            known_factor_model(Layout::default(), &[0.05, 0.1, 0.3, 0.7]),
+            known_factor_model(Layout::isotropic(12), &[0.3]),
+            known_factor_model(squared, &[0.1, 0.4]),
+        ];
+        for m in &models {
+            let f = FlatEval::new(m).unwrap();
+            check_eval4::<F64x2x2>(&f, &pairs);
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                #[target_feature(enable = "avx2")]
+                fn avx(f: &FlatEval, pairs: &[(Vec3, Vec3)]) {
+                    check_eval4::<crate::bsdf::lanes::avx::F64x4>(f, pairs)
+                }
+                // SAFETY: AVX2 was detected.
+                unsafe { avx(&f, &pairs) };
+            }
+        }
     }
 }

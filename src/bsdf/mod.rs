@@ -23,15 +23,18 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 mod anisotropic;
+mod batch;
 mod compensated;
 mod f64x2;
 mod factor;
 mod flat;
 mod ggx;
+mod lanes;
 mod measured;
 mod utia;
 
 pub use anisotropic::{AnisoSampler, PHI_SUB, THETA_SUB};
+pub use batch::{Directions, SampleBatch};
 pub use compensated::Compensated;
 pub use factor::{
     NpfBxdf, COVERAGE_SHARE, GL4_W, GL4_X, NEGLIGIBLE_CELL, PHI_CELLS, SELECTION_FLOOR, SUBCELLS,
@@ -112,6 +115,16 @@ pub enum BsdfError {
     /// The model failed its validation (sizes, finite, non-negative).
     #[error(transparent)]
     InvalidModel(#[from] crate::model::ModelError),
+    /// A batch call's slices differ in length.
+    #[error("{what}: {found} entries where the batch has {expected}")]
+    BatchLength {
+        /// Which slice.
+        what: &'static str,
+        /// The batch's length (its first slice's).
+        expected: usize,
+        /// This slice's length.
+        found: usize,
+    },
 }
 
 /// A reflectance model a renderer can evaluate and importance-sample
