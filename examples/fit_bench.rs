@@ -4,12 +4,14 @@
 //! cosine-weighted and log RMSE, peak memory, and where the fit's time goes.
 //!
 //!     cargo run --release --example fit_bench -- DATA_DIR [--threads N] [--max-sweeps N]
-//!         [--coarse 8,2] [--coarse-tol T] [--tol T] [--save-dir DIR]
+//!         [--coarse 8,2] [--coarse-tol T] [--tol T] [--save-dir DIR] [--golden-g]
 //!
 //! `--coarse` lists the decimation factors of coarse-to-fine levels run
 //! before the full set (`npf::coarse`; `--coarse 1` is a plain fit; the
 //! default is `FitConfig::default()`'s); `--save-dir` writes each model
-//! as DIR/NAME.npfb (for `npf compare`).
+//! as DIR/NAME.npfb (for `npf compare`); `--golden-g` updates G by
+//! golden-section search (the fit whose D once ran off along the D x G
+//! valley, docs/report.md).
 //!
 //! Each material runs in its own child process so that its peak resident
 //! memory (Linux VmHWM) is its own. Make DATA_DIR with
@@ -41,6 +43,7 @@ struct Settings {
     coarse: Vec<usize>,
     coarse_tol: f64,
     save_dir: Option<String>,
+    golden: bool,
 }
 
 fn main() {
@@ -69,6 +72,7 @@ fn main() {
         coarse_tol: flag(&args, "--coarse-tol")
             .map_or(d.coarse_tol, |v| v.parse().expect("--coarse-tol T")),
         save_dir: flag(&args, "--save-dir"),
+        golden: args.iter().any(|a| a == "--golden-g"),
     };
     if let Some(i) = args.iter().position(|a| a == "--one") {
         let result = rayon::ThreadPoolBuilder::new()
@@ -120,6 +124,9 @@ fn main() {
         if let Some(dir) = &settings.save_dir {
             child.args(["--save-dir", dir]);
         }
+        if settings.golden {
+            child.arg("--golden-g");
+        }
         let out = child.output().expect("run child");
         let name = f.file_stem().unwrap().to_string_lossy();
         if out.status.success() {
@@ -143,6 +150,11 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
     let opts = FitOptions {
         max_sweeps: s.max_sweeps,
         tol: s.tol,
+        g_method: if s.golden {
+            npf::solver::GMethod::Golden
+        } else {
+            FitOptions::default().g_method
+        },
         ..Default::default()
     };
     let layout = Layout::default();

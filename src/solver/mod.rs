@@ -20,6 +20,7 @@ pub mod g_update;
 pub mod gauge;
 pub mod gauss_newton;
 pub mod init;
+pub mod kernels;
 pub mod state;
 pub mod updates;
 
