@@ -34,7 +34,8 @@ pub struct FitFlags {
     pub epsilon: f64,
     /// The compressive floor as a fraction of the data's median
     /// cosine-weighted value (the floor is the larger of this times the
-    /// median and --epsilon; 0: --epsilon alone).
+    /// median and --epsilon; 0: --epsilon alone). 0.3 suits tables with
+    /// exactly-black cells, such as RGL's (docs/fitting.md).
     #[arg(long, default_value_t = defaults().epsilon_median)]
     pub epsilon_median: f64,
     /// Below this half angle (degrees) compressive weights use the mean
