@@ -73,6 +73,16 @@ pub struct SampleOptions {
     /// `None`: full weight up to the cut-off.
     #[serde(default)]
     pub taper_from_deg: Option<f64>,
+    /// Pooled weight scale near the mirror direction: a compressive weight
+    /// of a sample with theta_h below this angle (degrees) uses the mean
+    /// of the samples sharing its theta_h and theta_d (over phi_d) in
+    /// place of its own value. There phi_d barely moves the directions, so
+    /// an isotropic BRDF hardly depends on it; where a table's peak does
+    /// (by a factor of 10 in some RGL tables), weights of 1 / rho^2 pull
+    /// the fit to the lowest values and the peak renders far too dim.
+    /// `None`: every sample's own value.
+    #[serde(default)]
+    pub pool_scale_below_deg: Option<f64>,
 }
 
 impl Default for SampleOptions {
@@ -83,6 +93,7 @@ impl Default for SampleOptions {
             max_theta_deg: 85.0,
             max_theta_h_deg: 75.0,
             taper_from_deg: None,
+            pool_scale_below_deg: Some(1.6),
         }
     }
 }
@@ -108,6 +119,54 @@ impl SampleOptions {
             _ => 1.0,
         }
     }
+}
+
+/// The mean value of each (theta_h, theta_d) row of samples below the
+/// pooling angle ([`SampleOptions::pool_scale_below_deg`]).
+struct PooledScales {
+    limit: f64,
+    rows: std::collections::HashMap<(i64, i64), [f64; 3]>,
+}
+
+impl PooledScales {
+    /// The value a sample's weight is computed from.
+    fn scale(&self, a: &npf_data_loaders::geometry::Angles, own: [f64; 3]) -> [f64; 3] {
+        if a.theta_h >= self.limit {
+            return own;
+        }
+        *self.rows.get(&row_key(a)).unwrap_or(&own)
+    }
+}
+
+fn row_key(a: &npf_data_loaders::geometry::Angles) -> (i64, i64) {
+    let q = |x: f64| (x * 1e7).round() as i64;
+    (q(a.theta_h), q(a.theta_d))
+}
+
+/// Row means of the samples inside the cut-off below the pooling angle
+/// (summed in input order: deterministic); `None` when pooling is off or
+/// the weighting does not depend on the values.
+fn pooled_scales(samples: &MeasuredSamples, o: &SampleOptions, cut: f64) -> Option<PooledScales> {
+    let limit = o.pool_scale_below_deg?.to_radians();
+    if o.weighting != Weighting::Compressive || limit <= 0.0 {
+        return None;
+    }
+    let mut sums: std::collections::HashMap<(i64, i64), ([f64; 3], usize)> = Default::default();
+    for s in &samples.samples {
+        let a = &s.angles;
+        if a.theta_h < limit && a.theta_i <= cut && a.theta_o <= cut {
+            let e = sums.entry(row_key(a)).or_insert(([0.0; 3], 0));
+            for c in 0..3 {
+                e.0[c] += s.rgb[c];
+            }
+            e.1 += 1;
+        }
+    }
+    let rows = sums
+        .into_iter()
+        .map(|(k, (sum, n))| (k, sum.map(|v| v / n as f64)))
+        .collect();
+    Some(PooledScales { limit, rows })
 }
 
 /// For each table entry, the samples that touch it and with which weight
@@ -499,6 +558,7 @@ impl FitSet {
                 value,
             });
         }
+        let pooled = pooled_scales(samples, &options, cut);
         // (key, index) of every sample inside the cut-off. G(in) G(out) is
         // symmetric in the two directions, so ordering each pair by
         // elevation (azimuths travel with their elevation) changes no model
@@ -538,7 +598,8 @@ impl FitSet {
             let s = &samples.samples[index as usize];
             let a = &s.angles;
             let (ci, t) = (a.theta_i.cos(), options.taper(a.theta_i.max(a.theta_o)));
-            (s.rgb, s.rgb.map(|v| options.weight(v, ci) * t))
+            let scale = pooled.as_ref().map_or(s.rgb, |p| p.scale(a, s.rgb));
+            (s.rgb, scale.map(|v| options.weight(v, ci) * t))
         };
         // Each run of equal keys is merged into its first member, folding
         // the others in input order (one merged sample per run).

@@ -287,7 +287,7 @@ pub fn run(
         max_sweeps,
         ..FitConfig::default()
     };
-    let set = match FitSet::build(data, fc.layout(), fc.sample_options()) {
+    let set = match FitSet::build(data, fc.layout(), fc.sample_options_for(data)) {
         Ok(s) => s,
         Err(e) => {
             out.error = Some(e.to_string());

@@ -29,9 +29,19 @@ pub struct FitFlags {
     /// Residual weighting (see docs/fitting.md).
     #[arg(long, value_enum, default_value_t = defaults().weighting)]
     pub weighting: Weighting,
-    /// Floor of the compressive weight (cosine-weighted 1/sr).
+    /// Least floor of the compressive weight (cosine-weighted 1/sr).
     #[arg(long, default_value_t = defaults().epsilon)]
     pub epsilon: f64,
+    /// The compressive floor as a fraction of the data's median
+    /// cosine-weighted value (the floor is the larger of this times the
+    /// median and --epsilon; 0: --epsilon alone). 0.3 suits tables with
+    /// exactly-black cells, such as RGL's (docs/fitting.md).
+    #[arg(long, default_value_t = defaults().epsilon_median)]
+    pub epsilon_median: f64,
+    /// Below this half angle (degrees) compressive weights use the mean
+    /// value over phi_d of each (theta_h, theta_d) row (0: off).
+    #[arg(long, default_value_t = defaults().pool_scale_below.unwrap_or(0.0))]
+    pub pool_scale_below: f64,
     /// Grazing cut-off: leave out samples with theta_i or theta_o above this (degrees).
     #[arg(long, default_value_t = defaults().max_theta)]
     pub max_theta: f64,
@@ -105,6 +115,7 @@ impl FitFlags {
             nodes: self.nodes,
             weighting: self.weighting,
             epsilon: self.epsilon,
+            epsilon_median: self.epsilon_median,
             max_theta: self.max_theta,
             max_theta_h: self.max_theta_h,
             max_sweeps: self.max_sweeps,
@@ -124,6 +135,7 @@ impl FitFlags {
             gauss_newton: self.gauss_newton,
             taper_from: self.taper_from,
             masking: self.masking,
+            pool_scale_below: Some(self.pool_scale_below).filter(|&d| d > 0.0),
             compensate: self.compensate,
         }
     }
