@@ -676,7 +676,7 @@ fn fit_measured<'a>(
                 result.model.lobe_count()
             },
             weighting: format!("{:?}", config.weighting).to_lowercase(),
-            epsilon: config.epsilon_for(samples),
+            epsilon: config.epsilon_for(&samples),
             max_theta_deg: config.max_theta,
             max_theta_h_deg: config.max_theta_h,
             d_monotone_from_deg: config.d_monotone_from,
