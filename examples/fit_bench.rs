@@ -146,6 +146,9 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
     let table = MerlTable::read(path).map_err(|e| e.to_string())?;
     let source = path.display().to_string();
     let samples = table.samples(&source);
+    // As in `npf fit`: the table is not held during the fit, and is read
+    // again for the error measures.
+    drop(table);
     let read = t0.elapsed().as_secs_f64();
     let opts = FitOptions {
         max_sweeps: s.max_sweeps,
@@ -186,8 +189,9 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
     }
     let wall = t0.elapsed().as_secs_f64();
     npf::memory::release_free();
-    let samples = table.samples(&source);
-    drop(table);
+    let samples = MerlTable::read(path)
+        .map_err(|e| e.to_string())?
+        .samples(&source);
     let m = compare_model(&samples, SampleOptions::default().max_theta_deg, &res.model);
     // Mean milliseconds per sweep in each kind of stage (summed over lobes).
     let mut ms = [0.0f64; 6];

@@ -242,6 +242,15 @@ pub enum FitError {
         /// The value given.
         value: f64,
     },
+    /// The input could not be read again for the error measures after the
+    /// fit ([`fit_owned`]): it vanished or changed meanwhile.
+    #[error("{source_name}: cannot measure the fit's errors: {problem}")]
+    Remeasure {
+        /// The samples' source.
+        source_name: String,
+        /// What went wrong.
+        problem: String,
+    },
     /// The data, or the fitted model, cannot be represented in the model's
     /// storage precision (f32) or gave non-finite measures.
     #[error("{source_name}: {problem}")]
@@ -611,7 +620,7 @@ pub fn fit(
 ) -> Result<Fitted, FitError> {
     fit_measured(
         Cow::Borrowed(samples),
-        || Cow::Borrowed(samples),
+        || Ok(Cow::Borrowed(samples)),
         config,
         observer,
     )
@@ -619,19 +628,21 @@ pub fn fit(
 
 /// As [`fit`], but owning the samples: they are freed once the fit's sample
 /// sets are built, before its sweeps, and `remeasure` gives them again for
-/// the error measures after the fit (e.g. `|| table.samples(name)`, about
-/// 0.1 s for a MERL table). The measured samples (128 MB for a MERL table)
-/// and the solver's caches are then never in memory together, which lowers
-/// the fit's peak memory by the samples' size.
+/// the error measures after the fit (e.g. `|| Ok(table.samples(name))`,
+/// about 0.1 s for a MERL table, or a fresh read of the file, so that not
+/// even the table is held during the sweeps; its error is the fit's). The
+/// measured samples (88 MB for a MERL table) and the solver's caches are
+/// then never in memory together, which lowers the fit's peak memory by
+/// the samples' size.
 pub fn fit_owned(
     samples: MeasuredSamples,
-    remeasure: impl FnOnce() -> MeasuredSamples + Send,
+    remeasure: impl FnOnce() -> Result<MeasuredSamples, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
     fit_measured(
         Cow::Owned(samples),
-        || Cow::Owned(remeasure()),
+        || remeasure().map(Cow::Owned),
         config,
         observer,
     )
@@ -641,7 +652,7 @@ pub fn fit_owned(
 /// the same samples for the error measures.
 fn fit_measured<'a>(
     samples: Cow<'a, MeasuredSamples>,
-    remeasure: impl FnOnce() -> Cow<'a, MeasuredSamples> + Send,
+    remeasure: impl FnOnce() -> Result<Cow<'a, MeasuredSamples>, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
@@ -663,7 +674,7 @@ fn fit_measured<'a>(
         // The sets and caches are freed; their pages go back before the
         // samples are made again.
         crate::memory::release_free();
-        let samples = remeasure();
+        let samples = remeasure()?;
         let metrics = compare_model(&samples, config.max_theta, &result.model);
         check_result(&samples, &result, &metrics)?;
         let kind = config.model;

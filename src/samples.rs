@@ -22,7 +22,7 @@
 //! stencil, and every tail constraint acts on the theta part, so it holds
 //! in every phi column.
 
-use crate::grid::{Axis, Grid, Stencil, StencilTable};
+use crate::grid::{Axis, Grid, Stencil, StencilTable, Weight};
 use crate::model::Layout;
 use npf_data_loaders::MeasuredSamples;
 use rayon::prelude::*;
@@ -179,7 +179,7 @@ pub struct Incidence {
     /// The samples touching each entry.
     pub sample: Vec<u32>,
     /// Their interpolation weights.
-    pub weight: Vec<f64>,
+    pub weight: Vec<Weight>,
     /// Entries grouped so that no two in a group share a sample.
     pub colors: Vec<Vec<usize>>,
     /// Whether any sample with non-zero weight touches the entry.
@@ -205,13 +205,13 @@ impl Incidence {
         }
         let mut fill = start.clone();
         let mut sample = vec![0u32; start[cells]];
-        let mut weight = vec![0.0; start[cells]];
+        let mut weight: Vec<Weight> = vec![0.0; start[cells]];
         let mut has_data = vec![false; cells];
         let mut conflict = vec![false; cells * cells];
         for (j, &tw) in total_w.iter().enumerate().take(stencils.len()) {
             for (k, w) in stencils.entries(j) {
                 sample[fill[k]] = j as u32;
-                weight[fill[k]] = w;
+                weight[fill[k]] = w as Weight;
                 fill[k] += 1;
                 has_data[k] |= tw > 0.0;
                 for (k2, _) in stencils.entries(j) {
@@ -257,11 +257,31 @@ pub struct GIncidence {
     /// The samples touching each point.
     pub sample: Vec<u32>,
     /// The point's weight in the sample's G(theta_i).
-    pub u: Vec<f64>,
+    pub u: Vec<Weight>,
     /// The point's weight in the sample's G(theta_o).
-    pub v: Vec<f64>,
+    pub v: Vec<Weight>,
     /// Whether any sample with non-zero weight touches the point.
     pub has_data: Vec<bool>,
+}
+
+/// Samples per task of the incidence builds: large enough to amortise a
+/// task's per-point counts, small enough to balance two or more threads.
+const INCIDENCE_CHUNK: usize = 1 << 15;
+
+/// A slice written at distinct indices from parallel tasks.
+struct DisjointWrites<T>(*mut T, usize);
+// SAFETY: writers only touch distinct indices (see `write`).
+unsafe impl<T: Send> Sync for DisjointWrites<T> {}
+impl<T> DisjointWrites<T> {
+    fn new(v: &mut [T]) -> Self {
+        DisjointWrites(v.as_mut_ptr(), v.len())
+    }
+    /// SAFETY: no two concurrent calls may pass the same index, and the
+    /// slice given to `new` must outlive every call.
+    unsafe fn write(&self, i: usize, value: T) {
+        assert!(i < self.1, "incidence index out of range");
+        *self.0.add(i) = value;
+    }
 }
 
 impl GIncidence {
@@ -270,59 +290,100 @@ impl GIncidence {
         self.start[k]..self.start[k + 1]
     }
 
+    /// Built in parallel over chunks of samples: each chunk counts its
+    /// entries per point, the counts give every chunk its own slots in each
+    /// point's list, and the chunks fill them. The lists are in sample
+    /// order, exactly as a serial pass leaves them, for any thread count.
     fn build(nodes: usize, gi: &StencilTable, go: &StencilTable, total_w: &[f64]) -> Self {
         const MAX_TOUCHED: usize = 2 * crate::grid::MAX_SUPPORT;
         // The points sample j touches, with its weights in G(theta_i) and G(theta_o).
-        let touched = |j: usize, out: &mut [(usize, f64, f64); MAX_TOUCHED]| {
+        let touched = |j: usize, out: &mut [(usize, Weight, Weight); MAX_TOUCHED]| {
             let mut n = 0;
             for (k, w) in gi.entries(j) {
-                out[n] = (k, w, 0.0);
+                out[n] = (k, w as Weight, 0.0);
                 n += 1;
             }
             for (k, w) in go.entries(j) {
                 match out[..n].iter_mut().find(|t| t.0 == k) {
-                    Some(t) => t.2 = w,
+                    Some(t) => t.2 = w as Weight,
                     None => {
-                        out[n] = (k, 0.0, w);
+                        out[n] = (k, 0.0, w as Weight);
                         n += 1;
                     }
                 }
             }
             n
         };
-        // Two passes (count, then fill in sample order): CSR without a list per point.
-        let mut buf = [(usize::MAX, 0.0, 0.0); MAX_TOUCHED];
+        let n = gi.len();
+        let chunks = n.div_ceil(INCIDENCE_CHUNK);
+        let chunk = |c: usize| c * INCIDENCE_CHUNK..((c + 1) * INCIDENCE_CHUNK).min(n);
+        // Per chunk: entries per point, and whether a weighted sample touches it.
+        let counts: Vec<(Vec<usize>, Vec<bool>)> = (0..chunks)
+            .into_par_iter()
+            .map(|c| {
+                let mut buf = [(usize::MAX, 0.0, 0.0); MAX_TOUCHED];
+                let (mut count, mut has) = (vec![0usize; nodes], vec![false; nodes]);
+                for j in chunk(c) {
+                    let used = touched(j, &mut buf);
+                    for t in &buf[..used] {
+                        count[t.0] += 1;
+                        has[t.0] |= total_w[j] > 0.0;
+                    }
+                }
+                (count, has)
+            })
+            .collect();
         let mut start = vec![0usize; nodes + 1];
-        for j in 0..gi.len() {
-            let n = touched(j, &mut buf);
-            for t in &buf[..n] {
-                start[t.0 + 1] += 1;
+        let mut has_data = vec![false; nodes];
+        for (count, has) in &counts {
+            for k in 0..nodes {
+                start[k + 1] += count[k];
+                has_data[k] |= has[k];
             }
         }
         for k in 0..nodes {
             start[k + 1] += start[k];
         }
-        let total = start[nodes];
-        let mut g = GIncidence {
-            sample: vec![0; total],
-            u: vec![0.0; total],
-            v: vec![0.0; total],
-            has_data: vec![false; nodes],
-            start,
-        };
-        let mut fill = g.start.clone();
-        for (j, &tw) in total_w.iter().enumerate().take(gi.len()) {
-            let n = touched(j, &mut buf);
-            for &(k, u, v) in &buf[..n] {
-                let at = fill[k];
-                g.sample[at] = j as u32;
-                g.u[at] = u;
-                g.v[at] = v;
-                fill[k] += 1;
-                g.has_data[k] |= tw > 0.0;
+        // Chunk c's first slot in point k's list.
+        let mut first = Vec::with_capacity(chunks);
+        let mut at = start[..nodes].to_vec();
+        for (count, _) in &counts {
+            first.push(at.clone());
+            for k in 0..nodes {
+                at[k] += count[k];
             }
         }
-        g
+        let total = start[nodes];
+        let (mut sample, mut u, mut v) = (vec![0u32; total], vec![0.0; total], vec![0.0; total]);
+        let (ws, wu, wv) = (
+            DisjointWrites::new(&mut sample),
+            DisjointWrites::new(&mut u),
+            DisjointWrites::new(&mut v),
+        );
+        first.into_par_iter().enumerate().for_each(|(c, mut fill)| {
+            let mut buf = [(usize::MAX, 0.0, 0.0); MAX_TOUCHED];
+            for j in chunk(c) {
+                let used = touched(j, &mut buf);
+                for &(k, uk, vk) in &buf[..used] {
+                    let e = fill[k];
+                    fill[k] += 1;
+                    // SAFETY: slots fill[k] of chunk c are its own (counted
+                    // above), and the vectors outlive this loop.
+                    unsafe {
+                        ws.write(e, j as u32);
+                        wu.write(e, uk);
+                        wv.write(e, vk);
+                    }
+                }
+            }
+        });
+        GIncidence {
+            start,
+            sample,
+            u,
+            v,
+            has_data,
+        }
     }
 }
 
@@ -475,6 +536,14 @@ fn sort_key(a: &npf_data_loaders::geometry::Angles) -> u128 {
     q(lo) << 96 | q(hi) << 64 | q(a.theta_h) << 32 | q(a.theta_d)
 }
 
+/// Whether an elevation is past the cut-off (at most pi/2) or has a
+/// non-positive cosine. On [0, cut] the cosine is positive, so it is only
+/// computed for negative angles.
+#[inline]
+fn outside_cut(theta: f64, cut: f64) -> bool {
+    theta > cut || (theta < 0.0 && theta.cos() <= 0.0)
+}
+
 /// Merge sample r (value `ry`, weights `rw`) into the merged sample (y, w):
 /// its share of the objective's constant part, per channel.
 fn merge_into(y: &mut [f64; 3], w: &mut [f64; 3], ry: [f64; 3], rw: [f64; 3]) -> [f64; 3] {
@@ -569,8 +638,7 @@ impl FitSet {
             .enumerate()
             .filter_map(|(index, s)| {
                 let a = &s.angles;
-                let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
-                if a.theta_i > cut || a.theta_o > cut || ci <= 0.0 || co <= 0.0 {
+                if outside_cut(a.theta_i, cut) || outside_cut(a.theta_o, cut) {
                     return None;
                 }
                 Some((sort_key(a), index as u32))
@@ -594,12 +662,15 @@ impl FitSet {
         let order: &[(u128, u32)] = &sorted;
         // A sample's value and weights, recomputed from the input wherever
         // they are needed (cheaper than carrying 48 bytes through the sort).
+        let value_at = |s: &npf_data_loaders::MeasuredSample, cos_i: f64| {
+            let a = &s.angles;
+            let t = options.taper(a.theta_i.max(a.theta_o));
+            let scale = pooled.as_ref().map_or(s.rgb, |p| p.scale(a, s.rgb));
+            (s.rgb, scale.map(|v| options.weight(v, cos_i) * t))
+        };
         let value = |index: u32| {
             let s = &samples.samples[index as usize];
-            let a = &s.angles;
-            let (ci, t) = (a.theta_i.cos(), options.taper(a.theta_i.max(a.theta_o)));
-            let scale = pooled.as_ref().map_or(s.rgb, |p| p.scale(a, s.rgb));
-            (s.rgb, scale.map(|v| options.weight(v, ci) * t))
+            value_at(s, s.angles.theta_i.cos())
         };
         // Each run of equal keys is merged into its first member, folding
         // the others in input order (one merged sample per run).
@@ -616,61 +687,82 @@ impl FitSet {
         let n = starts.len();
         stats.merged_pairs = order.len() - n;
         stats.fitted = n;
-        // One pass over the runs: the merged value and weights, and for a
-        // pair (the usual run: a configuration and its reciprocal) the
-        // partner's share of the offset. Longer runs (rare) have their
-        // shares computed below.
-        let merged: Vec<([f64; 3], [f64; 3], [f64; 3])> = (0..n)
+        // One pass over the runs, straight into the set's arrays: the merged
+        // value and weights, and for a pair (the usual run: a configuration
+        // and its reciprocal) the partner's share of the offset. Longer runs
+        // (rare) have their shares computed below.
+        // The same pass gathers each merged sample's angles with theta_i <=
+        // theta_o (G(in) G(out) is symmetric in the two directions, and
+        // azimuths travel with their elevation) and its geometric terms,
+        // reading each first member once.
+        let (mut y, mut w) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let mut pair_share = vec![[0.0; 3]; n];
+        let mut gathered = vec![[0.0; 8]; n];
+        let (mut inv_cc, mut dirs) = (vec![0.0; n], vec![[0.0f32; 3]; n]);
+        (
+            y.par_iter_mut(),
+            w.par_iter_mut(),
+            pair_share.par_iter_mut(),
+            gathered.par_iter_mut(),
+            inv_cc.par_iter_mut(),
+            dirs.par_iter_mut(),
+        )
             .into_par_iter()
-            .map(|g| {
+            .enumerate()
+            .for_each(|(g, (y, w, share, angles, inv_cc, dirs))| {
                 let members = &order[run(g)];
-                let (mut y, mut w) = value(members[0].1);
-                let mut share = [0.0; 3];
-                for &(_, index) in &members[1..] {
-                    let (ry, rw) = value(index);
-                    share = merge_into(&mut y, &mut w, ry, rw);
-                }
-                (y, w, share)
-            })
-            .collect();
-        // Each merged partner's share of the offset, summed in input order.
-        let mut shares: Vec<(u32, [f64; 3])> = (0..n)
-            .into_par_iter()
-            .filter(|&g| run(g).len() == 2)
-            .map(|g| (order[starts[g] + 1].1, merged[g].2))
-            .collect();
-        for g in (0..n).filter(|&g| run(g).len() > 2) {
-            let members = &order[run(g)];
-            let (mut y, mut w) = value(members[0].1);
-            for &(_, index) in &members[1..] {
-                let (ry, rw) = value(index);
-                shares.push((index, merge_into(&mut y, &mut w, ry, rw)));
-            }
-        }
-        shares.par_sort_unstable_by_key(|s| s.0);
-        let mut offset = 0.0;
-        for (_, share) in shares {
-            for v in share {
-                offset += v;
-            }
-        }
-        let y: Vec<[f64; 3]> = merged.par_iter().map(|m| m.0).collect();
-        let w: Vec<[f64; 3]> = merged.par_iter().map(|m| m.1).collect();
-        drop(merged);
-        // Each merged sample's angles with theta_i <= theta_o, gathered once
-        // in set order: the passes below then read memory forward.
-        let gathered: Vec<[f64; 8]> = (0..n)
-            .into_par_iter()
-            .map(|g| {
-                let a = samples.samples[order[starts[g]].1 as usize].angles;
+                let first = &samples.samples[members[0].1 as usize];
+                let a = first.angles;
+                let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
                 let (ti, pi, to, po) = if a.theta_i > a.theta_o {
                     (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
                 } else {
                     (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
                 };
-                [a.theta_h, a.phi_h, a.theta_d, a.phi_d, ti, pi, to, po]
-            })
-            .collect();
+                *angles = [a.theta_h, a.phi_h, a.theta_d, a.phi_d, ti, pi, to, po];
+                *inv_cc = 1.0 / (ci * co);
+                *dirs = [ti as f32, to as f32, (pi - po).cos() as f32];
+                (*y, *w) = value_at(first, ci);
+                for &(_, index) in &members[1..] {
+                    let (ry, rw) = value(index);
+                    *share = merge_into(y, w, ry, rw);
+                }
+            });
+        // Each merged partner's share of the offset, summed in input order:
+        // `share_of[index]` names where the share of input sample `index`
+        // is (a pair's in `pair_share`, a longer run's in `run_shares`).
+        let mut share_of = vec![u32::MAX; samples.samples.len()];
+        {
+            let slots = DisjointWrites::new(&mut share_of);
+            (0..n)
+                .into_par_iter()
+                .filter(|&g| run(g).len() == 2)
+                // SAFETY: every input sample is in exactly one run.
+                .for_each(|g| unsafe { slots.write(order[starts[g] + 1].1 as usize, g as u32) });
+        }
+        let mut run_shares = Vec::new();
+        for g in (0..n).filter(|&g| run(g).len() > 2) {
+            let members = &order[run(g)];
+            let (mut y, mut w) = value(members[0].1);
+            for &(_, index) in &members[1..] {
+                let (ry, rw) = value(index);
+                share_of[index as usize] = (n + run_shares.len()) as u32;
+                run_shares.push(merge_into(&mut y, &mut w, ry, rw));
+            }
+        }
+        let mut offset = 0.0;
+        for &at in share_of.iter().filter(|&&at| at != u32::MAX) {
+            let at = at as usize;
+            let share = if at < n {
+                pair_share[at]
+            } else {
+                run_shares[at - n]
+            };
+            for v in share {
+                offset += v;
+            }
+        }
+        drop((pair_share, share_of, run_shares));
         drop((sorted, starts));
         let angles = |j: usize| &gathered[j];
         let g_free = last_free_g_node(&layout, cut);
@@ -683,20 +775,8 @@ impl FitSet {
             options,
             y,
             w,
-            inv_cc: (0..n)
-                .into_par_iter()
-                .map(|j| {
-                    let a = angles(j);
-                    1.0 / (a[4].cos() * a[6].cos())
-                })
-                .collect(),
-            dirs: (0..n)
-                .into_par_iter()
-                .map(|j| {
-                    let a = angles(j);
-                    [a[4] as f32, a[6] as f32, (a[5] - a[7]).cos() as f32]
-                })
-                .collect(),
+            inv_cc,
+            dirs,
             d_st: StencilTable::from_fn(layout.d.stencil_width(), n, |j| {
                 let a = angles(j);
                 dg.extend(fold_tail(dg.theta.stencil(a[0]), d_free, |_| 1.0), a[1])
@@ -744,11 +824,12 @@ impl FitSet {
             + self.f_st.heap_bytes()
             + self.gi_st.heap_bytes()
             + self.go_st.heap_bytes();
-        let inc = |i: &Incidence| i.sample.len() * 12 + i.start.len() * 8;
+        let weight = std::mem::size_of::<Weight>();
+        let inc = |i: &Incidence| i.sample.len() * (4 + weight) + i.start.len() * 8;
         self.len() * per_sample
             + st
             + inc(&self.d_inc)
             + inc(&self.f_inc)
-            + self.g_inc.sample.len() * 20
+            + self.g_inc.sample.len() * (4 + 2 * weight)
     }
 }

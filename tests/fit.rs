@@ -365,9 +365,36 @@ fn an_owned_fit_is_the_borrowed_fit() {
     };
     let samples = table.samples("t");
     let a = npf::fit::fit(&samples, &config, &mut |_, _| {}).unwrap();
-    let b = npf::fit::fit_owned(samples, || table.samples("t"), &config, &mut |_, _| {}).unwrap();
+    let b =
+        npf::fit::fit_owned(samples, || Ok(table.samples("t")), &config, &mut |_, _| {}).unwrap();
     assert_eq!(a.result.objective.to_bits(), b.result.objective.to_bits());
     assert_eq!(a.result.model.params(), b.result.model.params());
     assert_eq!(a.metrics, b.metrics);
     assert_eq!(a.info.samples, b.info.samples);
+}
+
+/// When the samples cannot be made again for the error measures (the
+/// input vanished or changed during the fit), the owned fit fails with
+/// that error rather than measuring against something else.
+#[test]
+fn an_owned_fit_reports_a_failed_remeasure() {
+    let truth = known_factor_model(Layout::default(), &[0.05, 0.2, 0.5]);
+    let samples = to_merl(&truth).samples("t");
+    let config = npf::fit::FitConfig {
+        max_sweeps: 1,
+        coarse: vec![],
+        ..Default::default()
+    };
+    let gone = || {
+        Err(npf::fit::FitError::Remeasure {
+            source_name: "t".into(),
+            problem: "the input changed during the fit".into(),
+        })
+    };
+    let e = npf::fit::fit_owned(samples, gone, &config, &mut |_, _| {}).unwrap_err();
+    assert!(matches!(e, npf::fit::FitError::Remeasure { .. }), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "t: cannot measure the fit's errors: the input changed during the fit"
+    );
 }

@@ -52,12 +52,22 @@ pub fn angles_of(v: Vec3) -> (f64, f64) {
 }
 
 fn rotate_z(v: Vec3, a: f64) -> Vec3 {
-    let (s, c) = a.sin_cos();
+    rotate_z_sc(v, a.sin_cos())
+}
+
+/// Rotation about z by the angle whose (sine, cosine) is `(s, c)`.
+#[inline(always)]
+fn rotate_z_sc(v: Vec3, (s, c): (f64, f64)) -> Vec3 {
     [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
 }
 
 fn rotate_y(v: Vec3, a: f64) -> Vec3 {
-    let (s, c) = a.sin_cos();
+    rotate_y_sc(v, a.sin_cos())
+}
+
+/// Rotation about y by the angle whose (sine, cosine) is `(s, c)`.
+#[inline(always)]
+fn rotate_y_sc(v: Vec3, (s, c): (f64, f64)) -> Vec3 {
     [c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]]
 }
 
@@ -68,10 +78,29 @@ pub fn directions_from_half_diff(
     theta_d: f64,
     phi_d: f64,
 ) -> (Vec3, Vec3) {
-    let d = spherical(theta_d, phi_d);
+    directions_from_half_diff_sc(
+        theta_h.sin_cos(),
+        phi_h.sin_cos(),
+        theta_d.sin_cos(),
+        phi_d.sin_cos(),
+    )
+}
+
+/// [`directions_from_half_diff`] from each angle's `(sin, cos)`: the same
+/// arithmetic, for callers on a grid that tabulate the sines and cosines
+/// of its few distinct angles once.
+#[inline(always)]
+pub fn directions_from_half_diff_sc(
+    theta_h: (f64, f64),
+    phi_h: (f64, f64),
+    theta_d: (f64, f64),
+    phi_d: (f64, f64),
+) -> (Vec3, Vec3) {
+    let ((st, ct), (sp, cp)) = (theta_d, phi_d);
+    let d = [st * cp, st * sp, ct];
     let d_mirror = [-d[0], -d[1], d[2]];
-    let wi = rotate_z(rotate_y(d, theta_h), phi_h);
-    let wo = rotate_z(rotate_y(d_mirror, theta_h), phi_h);
+    let wi = rotate_z_sc(rotate_y_sc(d, theta_h), phi_h);
+    let wo = rotate_z_sc(rotate_y_sc(d_mirror, theta_h), phi_h);
     (wi, wo)
 }
 

@@ -21,7 +21,7 @@ use byteorder::{ByteOrder, LittleEndian};
 
 use crate::atomic::write_atomic;
 use crate::error::LoadError;
-use crate::geometry::{angles_of, directions_from_half_diff, Angles};
+use crate::geometry::{angles_of, directions_from_half_diff_sc, Angles};
 use crate::planar;
 use crate::samples::{MeasuredSample, MeasuredSamples};
 
@@ -261,74 +261,126 @@ impl MerlTable {
     /// RGB. Missing cells and below-horizon cells are counted in `missing`,
     /// so `samples.len() + missing == CELLS`. Samples are in cell order.
     ///
-    /// Built one θh row at a time in parallel (rayon's current pool) and
-    /// joined in row order, so the result is the same for any thread count.
+    /// Two passes over the θh rows in parallel (rayon's current pool): one
+    /// counts each row's samples, the other writes them into the row's own
+    /// part of a vector of exactly the final size, so the result is the same
+    /// for any thread count and no larger buffer is ever held. The sines and
+    /// cosines of the grid's 360 distinct angles are computed once; every
+    /// sample's arithmetic is otherwise that of `Angles::from_half_diff`.
     pub fn samples(&self, source: &str) -> MeasuredSamples {
         use rayon::prelude::*;
-        const ROW: usize = MerlTable::RES_THETA_D * MerlTable::RES_PHI_D;
-        // Each row's samples are written to the front of its own slice of
-        // one buffer, then moved together in order: no second copy of the
-        // samples (128 MB) is ever held.
-        let zero = MeasuredSample {
-            angles: Angles::from_half_diff(0.0, 0.0, 0.0, 0.0),
-            rgb: [0.0; 3],
-        };
-        let mut samples = vec![zero; Self::CELLS];
-        let counts: Vec<(usize, usize)> = samples
-            .par_chunks_mut(ROW)
-            .enumerate()
-            .map(|(i_th, row)| self.row_samples(i_th, row))
+        let trig = NodeTrig::new();
+        let counts: Vec<usize> = (0..Self::RES_THETA_H)
+            .into_par_iter()
+            .map(|i_th| self.row_cells(&trig, i_th, |_, _, _, _| {}))
             .collect();
-        let (mut kept, mut missing) = (0, 0);
-        for (i_th, &(n, m)) in counts.iter().enumerate() {
-            samples.copy_within(i_th * ROW..i_th * ROW + n, kept);
-            kept += n;
-            missing += m;
+        let total: usize = counts.iter().sum();
+        let mut samples: Vec<MeasuredSample> = Vec::with_capacity(total);
+        let mut rows = Vec::with_capacity(Self::RES_THETA_H);
+        let mut rest = &mut samples.spare_capacity_mut()[..total];
+        for &n in &counts {
+            let (row, tail) = rest.split_at_mut(n);
+            rows.push(row);
+            rest = tail;
         }
-        samples.truncate(kept);
-        samples.shrink_to_fit();
+        rows.into_par_iter().enumerate().for_each(|(i_th, row)| {
+            let mut at = 0;
+            let written = self.row_cells(&trig, i_th, |angles, rgb, wi, wo| {
+                // `Angles::from_half_diff`'s elevations and azimuths, from
+                // the directions already at hand.
+                let ((theta_i, phi_i), (theta_o, phi_o)) = (angles_of(wi), angles_of(wo));
+                let angles = Angles {
+                    theta_i,
+                    phi_i,
+                    theta_o,
+                    phi_o,
+                    ..angles
+                };
+                row[at].write(MeasuredSample { angles, rgb });
+                at += 1;
+            });
+            assert_eq!(written, row.len(), "the two passes over a row disagree");
+        });
+        // SAFETY: every row's slots were written above (the assertion checks
+        // each row's count), and the rows tile the first `total` slots.
+        unsafe { samples.set_len(total) };
         MeasuredSamples {
             source: source.to_string(),
             isotropic: true,
             samples,
-            missing,
+            missing: Self::CELLS - total,
         }
     }
 
-    /// One θh row of [`MerlTable::samples`], written to the front of `out`
-    /// (the row's slots): how many samples it holds, and its missing count.
-    fn row_samples(&self, i_th: usize, out: &mut [MeasuredSample]) -> (usize, usize) {
-        let (mut n, mut missing) = (0, 0);
+    /// Calls `sample(angles, rgb, wi, wo)` for each valid, above-horizon cell
+    /// of θh row `i_th` in cell order (`angles` holds the half/difference
+    /// angles only) and returns how many there were.
+    #[inline(always)]
+    fn row_cells(
+        &self,
+        trig: &NodeTrig,
+        i_th: usize,
+        mut sample: impl FnMut(Angles, [f64; 3], [f64; 3], [f64; 3]),
+    ) -> usize {
+        let mut n = 0;
+        let sc_th = trig.theta_h[i_th];
+        let sc_0 = trig.zero;
         for i_td in 0..Self::RES_THETA_D {
             for i_pd in 0..Self::RES_PHI_D {
-                let Some(rgb) = self.cell(Self::index(i_th, i_td, i_pd)) else {
-                    missing += 1;
-                    continue;
-                };
-                let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
-                let (wi, wo) = directions_from_half_diff(th, 0.0, td, pd);
-                if wi[2] <= 0.0 || wo[2] <= 0.0 {
-                    missing += 1;
+                let index = Self::index(i_th, i_td, i_pd);
+                // As [`MerlTable::cell`]: missing if any channel is negative.
+                if (0..3).any(|c| self.raw[c * Self::CELLS + index] < 0.0) {
                     continue;
                 }
-                // What `Angles::from_half_diff` computes, from the
-                // directions already at hand.
-                let ((theta_i, phi_i), (theta_o, phi_o)) = (angles_of(wi), angles_of(wo));
+                let (wi, wo) =
+                    directions_from_half_diff_sc(sc_th, sc_0, trig.theta_d[i_td], trig.phi_d[i_pd]);
+                if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                    continue;
+                }
+                let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
+                let rgb =
+                    std::array::from_fn(|c| self.raw[c * Self::CELLS + index] * Self::SCALE[c]);
                 let angles = Angles {
                     theta_h: th,
                     phi_h: 0.0,
                     theta_d: td,
                     phi_d: pd,
-                    theta_i,
-                    phi_i,
-                    theta_o,
-                    phi_o,
+                    theta_i: 0.0,
+                    phi_i: 0.0,
+                    theta_o: 0.0,
+                    phi_o: 0.0,
                 };
-                out[n] = MeasuredSample { angles, rgb };
+                sample(angles, rgb, wi, wo);
                 n += 1;
             }
         }
-        (n, missing)
+        n
+    }
+}
+
+/// (sin, cos) of every node angle of the MERL grid (and of φh = 0).
+struct NodeTrig {
+    theta_h: Vec<(f64, f64)>,
+    theta_d: Vec<(f64, f64)>,
+    phi_d: Vec<(f64, f64)>,
+    zero: (f64, f64),
+}
+
+impl NodeTrig {
+    fn new() -> Self {
+        let node = |i_th, i_td, i_pd| MerlTable::node_angles(i_th, i_td, i_pd);
+        NodeTrig {
+            theta_h: (0..MerlTable::RES_THETA_H)
+                .map(|i| node(i, 0, 0).0.sin_cos())
+                .collect(),
+            theta_d: (0..MerlTable::RES_THETA_D)
+                .map(|i| node(0, i, 0).1.sin_cos())
+                .collect(),
+            phi_d: (0..MerlTable::RES_PHI_D)
+                .map(|i| node(0, 0, i).2.sin_cos())
+                .collect(),
+            zero: 0f64.sin_cos(),
+        }
     }
 }
 
@@ -348,6 +400,7 @@ fn bin(x: f64, n: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::directions_from_half_diff;
 
     #[test]
     fn constants_agree() {

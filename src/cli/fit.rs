@@ -160,7 +160,10 @@ pub fn flag_message(e: &FitError) -> String {
         },
         FitError::Threads { .. } | FitError::TooManyThreads { .. } => format!("--threads: {e}"),
         FitError::Range { name, .. } => format!("--{}: {e}", name.replace('_', "-")),
-        FitError::Samples(_) | FitError::Ggx(_) | FitError::Unrepresentable { .. } => e.to_string(),
+        FitError::Samples(_)
+        | FitError::Ggx(_)
+        | FitError::Unrepresentable { .. }
+        | FitError::Remeasure { .. } => e.to_string(),
     }
 }
 
@@ -378,17 +381,47 @@ pub(super) fn fit_table(
             )?
         }
         (None, None) => {
-            // The samples are freed during the fit (its peak memory) and
-            // made again from the table for the error measures.
+            // Neither the samples nor the table are held during the sweeps
+            // (the fit's peak memory): the table is read again for the
+            // error measures, and refused if the file changed meanwhile.
             let source = samples.source.clone();
+            let stamp = file_stamp(input);
+            drop(table);
+            let reread = || {
+                let changed = |problem: String| FitError::Remeasure {
+                    source_name: source.clone(),
+                    problem,
+                };
+                if file_stamp(input) != stamp {
+                    return Err(changed("the input changed during the fit".into()));
+                }
+                let (_, again) = super::read_measured(input, args.format)
+                    .map_err(|e| changed(format!("reading it again: {e}")))?;
+                Ok(again)
+            };
             let (bar, mut observer) = progress(config, verbose);
-            let fitted =
-                crate::fit::fit_owned(samples, || table.samples(&source), config, &mut observer)?;
+            let fitted = crate::fit::fit_owned(samples, reread, config, &mut observer)?;
             bar.finish_and_clear();
-            fitted
+            return write_fitted(output, args, fitted);
         }
     };
     drop(table);
+    write_fitted(output, args, fitted)
+}
+
+/// The input's size and modification time (`None` if unreadable): what
+/// tells a file changed between two reads.
+fn file_stamp(path: &std::path::Path) -> Option<(u64, std::time::SystemTime)> {
+    let m = std::fs::metadata(path).ok()?;
+    Some((m.len(), m.modified().ok()?))
+}
+
+/// Write a fitted model to `output`.
+fn write_fitted(
+    output: &std::path::Path,
+    args: &FitArgs,
+    fitted: Fitted,
+) -> Result<Fitted, CliError> {
     modelfile::write(
         output,
         &ModelFile {

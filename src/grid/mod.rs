@@ -20,4 +20,4 @@ pub mod stencil;
 
 pub use axis::{catmull_rom_stencil, Axis, PhiAxis};
 pub use grid::Grid;
-pub use stencil::{Stencil, StencilTable, MAX_SUPPORT};
+pub use stencil::{Stencil, StencilTable, Weight, MAX_SUPPORT};

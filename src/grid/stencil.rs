@@ -5,9 +5,17 @@
 //! sample for one factor as structure-of-arrays with a fixed width per
 //! factor (2 for a linear 1-D table, 4 for Catmull-Rom or bilinear, 8 for
 //! Catmull-Rom x linear), so a fit keeps exactly the slots its factor needs.
+//! A table stores its weights as [`Weight`] (f32): the fit's model is then
+//! interpolated with weights rounded to 2^-24 relative, far below any
+//! measurement's precision, and every sum over them still runs in f64.
 
 /// The most slots a stencil may have (Catmull-Rom x linear: 4 x 2).
 pub const MAX_SUPPORT: usize = 8;
+
+/// A stored interpolation weight (in [`StencilTable`] and the sample set's
+/// incidence lists): f32 halves the largest arrays of a fit's memory, and
+/// readers widen it to f64 before any arithmetic.
+pub type Weight = f32;
 
 /// Up to [`MAX_SUPPORT`] (index, weight) slots; slots past `len` are unused
 /// and a used slot may have weight 0 (it is then skipped). Sums read the
@@ -137,7 +145,7 @@ pub struct StencilTable {
     /// Table entry of each slot.
     pub idx: Vec<u32>,
     /// Weight of each slot (0: unused).
-    pub w: Vec<f64>,
+    pub w: Vec<Weight>,
 }
 
 impl StencilTable {
@@ -159,7 +167,7 @@ impl StencilTable {
             let w = st.w[k];
             if k < self.width {
                 self.idx.push(st.idx[k]);
-                self.w.push(w);
+                self.w.push(w as Weight);
                 used += 1;
             } else {
                 assert!(w == 0.0, "stencil wider than its table ({})", self.width);
@@ -180,7 +188,7 @@ impl StencilTable {
         // Samples per task: large enough to amortise the task, small enough to balance.
         const CHUNK: usize = 4096;
         let mut idx = vec![0u32; width * n];
-        let mut w = vec![0.0f64; width * n];
+        let mut w: Vec<Weight> = vec![0.0; width * n];
         idx.par_chunks_mut(width * CHUNK)
             .zip(w.par_chunks_mut(width * CHUNK))
             .enumerate()
@@ -190,7 +198,7 @@ impl StencilTable {
                     for s in 0..st.len as usize {
                         if s < width {
                             idx[s] = st.idx[s];
-                            w[s] = st.w[s];
+                            w[s] = st.w[s] as Weight;
                         } else {
                             assert!(st.w[s] == 0.0, "stencil wider than its table ({width})");
                         }
@@ -234,7 +242,7 @@ impl StencilTable {
     /// Sample j's slots as fixed-size arrays (`N` must equal `width`), for
     /// loops that dispatch on the width once instead of per sample.
     #[inline(always)]
-    pub fn row<const N: usize>(&self, j: usize) -> (&[u32; N], &[f64; N]) {
+    pub fn row<const N: usize>(&self, j: usize) -> (&[u32; N], &[Weight; N]) {
         debug_assert_eq!(N, self.width);
         let base = j * N;
         (
@@ -245,7 +253,7 @@ impl StencilTable {
 
     /// [`StencilTable::apply`] of a row from [`StencilTable::row`].
     #[inline(always)]
-    pub fn apply_row<const N: usize>(row: (&[u32; N], &[f64; N]), values: &[f64]) -> f64 {
+    pub fn apply_row<const N: usize>(row: (&[u32; N], &[Weight; N]), values: &[f64]) -> f64 {
         sum_slots(row.0, row.1, values)
     }
 
@@ -256,21 +264,21 @@ impl StencilTable {
             .iter()
             .zip(&self.w[r])
             .filter(|(_, &w)| w != 0.0)
-            .map(|(&i, &w)| (i as usize, w))
+            .map(|(&i, &w)| (i as usize, f64::from(w)))
     }
 
     /// Heap bytes.
     pub fn heap_bytes(&self) -> usize {
-        self.idx.len() * 4 + self.w.len() * 8
+        self.idx.len() * 4 + self.w.len() * std::mem::size_of::<Weight>()
     }
 }
 
 #[inline(always)]
-fn sum_slots(idx: &[u32], w: &[f64], values: &[f64]) -> f64 {
+fn sum_slots(idx: &[u32], w: &[Weight], values: &[f64]) -> f64 {
     let mut s = 0.0;
     for (&i, &w) in idx.iter().zip(w) {
         if w != 0.0 {
-            s += w * values[i as usize];
+            s += f64::from(w) * values[i as usize];
         }
     }
     s

@@ -73,7 +73,7 @@ pub(crate) fn g2_points(
                 let mut acc = [0.0; 3];
                 for e in range.start + r.start..range.start + r.end {
                     let x = &wv[inc.sample[e] as usize];
-                    let (u, v) = (inc.u[e], inc.v[e]);
+                    let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
                     let p0 = height_correlated(x.gi, x.go);
                     let (p, slope) = g2_and_slope(x.gi + u * t, x.go + v * t, u, v);
                     let dp = p - p0;
@@ -119,7 +119,7 @@ pub(crate) fn g2_points(
         // Each sample appears once in a point's list.
         for e in range.clone() {
             let x = &mut work[inc.sample[e] as usize];
-            let (u, v) = (inc.u[e], inc.v[e]);
+            let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
             let dp = height_correlated(x.gi + u * best_t, x.go + v * best_t)
                 - height_correlated(x.gi, x.go);
             x.sr += x.sa * dp;

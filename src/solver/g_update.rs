@@ -155,7 +155,7 @@ pub(crate) fn update_g(
             let mut acc = [0.0; 4];
             for e in range.start + r.start..range.start + r.end {
                 let x = &wv[inc.sample[e] as usize];
-                let (u, v) = (inc.u[e], inc.v[e]);
+                let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
                 let p1 = x.gi * v + x.go * u;
                 let p2 = u * v;
                 acc[0] += 2.0 * x.sr * p1;
@@ -189,7 +189,7 @@ pub(crate) fn update_g(
             for e in lo..hi {
                 // SAFETY: distinct samples within one point's list (see GIncidence::build).
                 let x = unsafe { shared.get(inc.sample[e] as usize) };
-                let (u, v) = (inc.u[e], inc.v[e]);
+                let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
                 let p1 = x.gi * v + x.go * u;
                 let p2 = u * v;
                 x.sr += x.sa * (p1 * t + p2 * t * t);

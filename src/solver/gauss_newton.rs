@@ -18,6 +18,7 @@
 
 use super::state::{basis_at, Cache, Factors, State};
 use super::{FitOptions, GMethod, CHUNK, MAX_LOBES};
+use crate::grid::Weight;
 use crate::samples::FitSet;
 use rayon::prelude::*;
 
@@ -125,33 +126,40 @@ fn partials(set: &FitSet, st: &State, j: usize, c: &Cache) -> Partials {
 
 /// Slots of sample j in a stencil table of width `N`.
 #[inline(always)]
-fn slots<const N: usize>(t: &crate::grid::StencilTable, j: usize) -> (&[u32; N], &[f64; N]) {
+fn slots<const N: usize>(t: &crate::grid::StencilTable, j: usize) -> (&[u32; N], &[Weight; N]) {
     t.row::<N>(j)
 }
 
 /// sum_k w_k v[off + idx_k].
 #[inline(always)]
-fn dot<const N: usize>(idx: &[u32; N], w: &[f64; N], v: &[f64], off: usize) -> f64 {
+fn dot<const N: usize>(idx: &[u32; N], w: &[Weight; N], v: &[f64], off: usize) -> f64 {
     let mut a = 0.0;
     for k in 0..N {
-        a += w[k] * v[off + idx[k] as usize];
+        a += f64::from(w[k]) * v[off + idx[k] as usize];
     }
     a
 }
 
 /// out[off + idx_k] += w_k a.
 #[inline(always)]
-fn scatter<const N: usize>(idx: &[u32; N], w: &[f64; N], out: &mut [f64], off: usize, a: f64) {
+fn scatter<const N: usize>(idx: &[u32; N], w: &[Weight; N], out: &mut [f64], off: usize, a: f64) {
     for k in 0..N {
-        out[off + idx[k] as usize] += w[k] * a;
+        out[off + idx[k] as usize] += f64::from(w[k]) * a;
     }
 }
 
 /// out[off + idx_k] += w_k^2 a.
 #[inline(always)]
-fn scatter_sq<const N: usize>(idx: &[u32; N], w: &[f64; N], out: &mut [f64], off: usize, a: f64) {
+fn scatter_sq<const N: usize>(
+    idx: &[u32; N],
+    w: &[Weight; N],
+    out: &mut [f64],
+    off: usize,
+    a: f64,
+) {
     for k in 0..N {
-        out[off + idx[k] as usize] += w[k] * w[k] * a;
+        let w = f64::from(w[k]);
+        out[off + idx[k] as usize] += w * w * a;
     }
 }
 

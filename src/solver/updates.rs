@@ -54,7 +54,7 @@ pub(crate) fn linear_pass(
                 let (mut num, mut den) = (0.0, 0.0);
                 for e in inc.entries(k) {
                     let (sr, sa) = scratch.s[inc.sample[e] as usize];
-                    let om = inc.weight[e];
+                    let om = f64::from(inc.weight[e]);
                     num += om * sr;
                     den += om * om * sa;
                 }
@@ -78,7 +78,7 @@ pub(crate) fn linear_pass(
             table[k] += dx;
             for e in inc.entries(k) {
                 let j = inc.sample[e] as usize;
-                let om = inc.weight[e];
+                let om = f64::from(inc.weight[e]);
                 let sj = &mut scratch.s[j];
                 sj.0 += sj.1 * om * dx;
                 scratch.delta[j] += om * dx;
