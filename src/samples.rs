@@ -536,6 +536,81 @@ fn sort_key(a: &npf_data_loaders::geometry::Angles) -> u128 {
     q(lo) << 96 | q(hi) << 64 | q(a.theta_h) << 32 | q(a.theta_d)
 }
 
+/// `pairs` in ascending order, as `par_sort_unstable` leaves them (the pairs
+/// are distinct, so the order is total and unique). A counting pass
+/// distributes them into buckets by the top 32 bits of the key (theta_i's
+/// quantised value), chunk by chunk in input order, then each bucket (a few
+/// hundred pairs, cache resident) is sorted on its own, in parallel: about
+/// half the work of a comparison sort of the whole array.
+fn bucket_sort(pairs: Vec<(u128, u32)>) -> Vec<(u128, u32)> {
+    const CHUNK: usize = 1 << 16;
+    let top = |p: &(u128, u32)| (p.0 >> 96) as u32;
+    let (lo, hi) = pairs
+        .par_iter()
+        .map(|p| (top(p), top(p)))
+        .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    if pairs.len() < 2 * CHUNK || lo >= hi {
+        let mut pairs = pairs;
+        pairs.par_sort_unstable();
+        return pairs;
+    }
+    // About 256 pairs a bucket; the shift keeps the bucket monotone in the key.
+    let want = (pairs.len() / 256).next_power_of_two().min(1 << 16) as u64;
+    let span = u64::from(hi - lo) + 1;
+    let shift = (64 - (span.div_ceil(want)).leading_zeros()).min(31);
+    let buckets = ((span - 1) >> shift) as usize + 1;
+    let bucket = |p: &(u128, u32)| ((top(p) - lo) >> shift) as usize;
+    let chunks: Vec<&[(u128, u32)]> = pairs.chunks(CHUNK).collect();
+    let counts: Vec<Vec<usize>> = chunks
+        .par_iter()
+        .map(|c| {
+            let mut n = vec![0usize; buckets];
+            for p in c.iter() {
+                n[bucket(p)] += 1;
+            }
+            n
+        })
+        .collect();
+    // Chunk c's first slot in bucket b: the bucket's start plus the pairs
+    // of earlier chunks in it.
+    let mut sizes = vec![0usize; buckets];
+    let mut firsts = Vec::with_capacity(chunks.len());
+    for n in &counts {
+        firsts.push(sizes.clone());
+        for (s, k) in sizes.iter_mut().zip(n) {
+            *s += k;
+        }
+    }
+    let mut start = 0;
+    let mut bucket_start = vec![0usize; buckets];
+    for (b, &size) in sizes.iter().enumerate() {
+        bucket_start[b] = start;
+        start += size;
+    }
+    let mut out = vec![(0u128, 0u32); pairs.len()];
+    {
+        let slots = DisjointWrites::new(&mut out);
+        chunks.par_iter().zip(firsts).for_each(|(c, mut fill)| {
+            for p in c.iter() {
+                let b = bucket(p);
+                // SAFETY: chunk c's slots in each bucket are its own.
+                unsafe { slots.write(bucket_start[b] + fill[b], *p) };
+                fill[b] += 1;
+            }
+        });
+    }
+    drop(pairs);
+    let mut parts = Vec::with_capacity(buckets);
+    let mut rest = &mut out[..];
+    for &size in &sizes {
+        let (part, tail) = rest.split_at_mut(size);
+        parts.push(part);
+        rest = tail;
+    }
+    parts.into_par_iter().for_each(|part| part.sort_unstable());
+    out
+}
+
 /// Whether an elevation is past the cut-off (at most pi/2) or has a
 /// non-positive cosine. On [0, cut] the cosine is positive, so it is only
 /// computed for negative angles.
@@ -632,7 +707,7 @@ impl FitSet {
         // symmetric in the two directions, so ordering each pair by
         // elevation (azimuths travel with their elevation) changes no model
         // value.
-        let mut order: Vec<(u128, u32)> = samples
+        let order: Vec<(u128, u32)> = samples
             .samples
             .par_iter()
             .enumerate()
@@ -657,8 +732,7 @@ impl FitSet {
         // memory mostly forward. Ties are broken by the index, so reciprocal
         // partners (equal keys) end up adjacent and in input order, as a
         // stable sort would leave them.
-        order.par_sort_unstable();
-        let sorted = order;
+        let sorted = bucket_sort(order);
         let order: &[(u128, u32)] = &sorted;
         // A sample's value and weights, recomputed from the input wherever
         // they are needed (cheaper than carrying 48 bytes through the sort).
