@@ -907,3 +907,45 @@ impl FitSet {
             + self.g_inc.sample.len() * (4 + 2 * weight)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// splitmix64: a fixed pseudo-random sequence.
+    fn mix(i: u64) -> u64 {
+        let mut z = i.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// The bucket sort leaves exactly the order of a comparison sort, for
+    /// spread keys, keys with many ties (reciprocal pairs), keys crowded
+    /// into one bucket, and any thread count.
+    #[test]
+    fn bucket_sort_is_a_sort() {
+        let n = 300_000u64;
+        let cases: [(&str, Box<dyn Fn(u64) -> u128>); 3] = [
+            (
+                "spread",
+                Box::new(|i| (mix(i) as u128) << 64 | mix(i + n) as u128),
+            ),
+            ("ties", Box::new(|i| ((mix(i / 3) >> 40) as u128) << 96)),
+            ("crowded", Box::new(|i| 7u128 << 96 | (mix(i) % 5) as u128)),
+        ];
+        for (name, key) in cases {
+            let pairs: Vec<(u128, u32)> = (0..n).map(|i| (key(i), i as u32)).collect();
+            let mut expected = pairs.clone();
+            expected.sort_unstable();
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let got = pool.install(|| bucket_sort(pairs.clone()));
+                assert!(got == expected, "{name}, {threads} threads");
+            }
+        }
+    }
+}
