@@ -46,7 +46,7 @@ pub struct FitFlags {
     pub epsilon_median_untrusted: f64,
     /// Grazing trust from the data (0: off): a table without clamped cells whose
     /// grazing cells' reciprocity asymmetry (upper quartile) is below this is fitted
-    /// to 89 degrees with weights tapering from 80, others keep --max-theta
+    /// to 89 degrees with weights tapering from 85, others keep --max-theta
     /// (docs/fitting.md).
     #[arg(long, default_value_t = defaults().grazing_trust)]
     pub grazing_trust: f64,
