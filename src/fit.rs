@@ -80,6 +80,22 @@ pub struct FitConfig {
     /// data's typical level lets near-black and exactly-zero cells (which
     /// no rendering can see) dominate the objective (BENCHMARKS.md, issue 16).
     pub epsilon_median: f64,
+    /// The same fraction for data that do not look like a trustworthy
+    /// measurement: clamped (at least [`CLAMPED_ZERO_FRACTION`] of a
+    /// channel's samples inside the cut-off exactly 0, as where a
+    /// resampling clamped negative values) or, with `grazing_trust` on,
+    /// not reciprocal at grazing angles ([`GrazingRule::asymmetry`] at
+    /// least `grazing_trust`). Such a table's near-black cells are no level
+    /// to fit relatively. The larger of the two fractions applies
+    /// ([`FitConfig::floor_rule`]; 0: off).
+    pub epsilon_median_untrusted: f64,
+    /// Grazing trust decided by the data: a table that is not clamped
+    /// ([`FloorRule::clamped`]) and whose grazing cells agree with their reciprocal
+    /// partners (upper quartile of the relative asymmetry below this) is fitted to
+    /// [`GRAZING_MAX_THETA`] with weights tapering from
+    /// [`GRAZING_TAPER_FROM`] ([`FitConfig::grazing_rule`]); other tables at
+    /// `max_theta`. 0: off. Only when `taper_from` is not set.
+    pub grazing_trust: f64,
     /// Grazing cut-off (degrees): samples with theta_i or theta_o above it
     /// are left out.
     pub max_theta: f64,
@@ -140,6 +156,8 @@ impl Default for FitConfig {
             weighting: s.weighting,
             epsilon: s.epsilon,
             epsilon_median: EPSILON_MEDIAN,
+            epsilon_median_untrusted: EPSILON_MEDIAN_UNTRUSTED,
+            grazing_trust: GRAZING_TRUST,
             max_theta: s.max_theta_deg,
             max_theta_h: s.max_theta_h_deg,
             max_sweeps: o.max_sweeps,
@@ -168,6 +186,76 @@ impl Default for FitConfig {
 /// by up to 9 dB but lowers polyurethane-foam by 0.76 dB and
 /// silver-metallic-paint by 0.51, so it is an option, not the default.
 pub const EPSILON_MEDIAN: f64 = 0.0;
+
+/// The default [`FitConfig::epsilon_median_untrusted`]: on the 8 clamped RGL
+/// tables 0.6 renders better than 0.3 on 6 and than 1.0 on 5 (paper_blue
+/// prefers 0.3); on the 16 MERL tables it changes nothing (none is
+/// untrusted but black-obsidian, and 0.6 of its median is below
+/// `epsilon`). BENCHMARKS.md,
+/// issue 16, "data-decided floor and grazing trust".
+pub const EPSILON_MEDIAN_UNTRUSTED: f64 = 0.6;
+
+/// The fraction of a channel's samples (inside the cut-off) that must be
+/// exactly 0 for the data to count as clamped: 1 in 2,000, above isolated
+/// zeros, below the 0.07-23 % of the clamped RGL tables (the 16 MERL have
+/// none, black-obsidian apart, whose floor stays at `epsilon`).
+pub const CLAMPED_ZERO_FRACTION: f64 = 5e-4;
+
+/// What [`FitConfig::floor_rule`] read from the data and chose.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FloorRule {
+    /// The largest fraction of one channel's samples inside the cut-off
+    /// that are exactly 0.
+    pub zero_fraction: f64,
+    /// Whether that is at least [`CLAMPED_ZERO_FRACTION`].
+    pub clamped: bool,
+    /// [`GrazingRule::asymmetry`] (NaN when `grazing_trust` is off or no
+    /// grazing cell has a partner).
+    pub grazing_asymmetry: f64,
+    /// Clamped, or the grazing asymmetry at least `grazing_trust`: the
+    /// data get `epsilon_median_untrusted` and the cut-off.
+    pub untrusted: bool,
+    /// The median of rho cos theta_i (channel mean) inside the cut-off.
+    pub median: f64,
+    /// The fraction of the median applied (0: none).
+    pub median_fraction: f64,
+    /// The resulting floor.
+    pub epsilon: f64,
+}
+
+/// The default [`FitConfig::grazing_trust`]: the upper quartile is
+/// 0.04-0.15 on the 16 MERL tables and 0.26-0.60 on the 10 RGL ones, whose
+/// grazing cells mislead a fit (a tapered fit to 89 degrees gains up to
+/// 2.7 dB on MERL, loses up to 1 dB on RGL). BENCHMARKS.md, issue 16,
+/// "data-decided floor and grazing trust".
+pub const GRAZING_TRUST: f64 = 0.2;
+
+/// The cut-off of a table whose grazing cells are trusted (degrees).
+pub const GRAZING_MAX_THETA: f64 = 89.0;
+
+/// Where the weights of a trusted table's grazing cells start to taper:
+/// from the usual cut-off, so the cells a fit saw before keep their
+/// weight (a taper from 80 lowered polyurethane-foam by 0.18 dB and left
+/// green-latex 0.36 dB below Independent-G; from 85 neither).
+pub const GRAZING_TAPER_FROM: f64 = 85.0;
+
+/// What [`FitConfig::grazing_rule`] read from the data and chose.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GrazingRule {
+    /// Upper quartile over the cells past `max_theta` (up to
+    /// [`GRAZING_MAX_THETA`]) of |a - b| / (a + b), a and b the channel
+    /// sums of a cell and of its reciprocal partner (theta_i and theta_o
+    /// swapped): how far the grazing data are from any reciprocal BRDF.
+    /// (The quartile, not the median: the tables whose grazing cells mislead
+    /// a fit differ from the rest in their tail of disagreeing cells.)
+    pub asymmetry: f64,
+    /// Whether the grazing cells are fitted.
+    pub trusted: bool,
+    /// The cut-off fitted (degrees).
+    pub max_theta_deg: f64,
+    /// The taper fitted (degrees).
+    pub taper_from_deg: Option<f64>,
+}
 
 /// Largest [`FitConfig::epsilon_median`]: a floor above the median makes
 /// the weighting plain least squares on more than half the samples.
@@ -289,36 +377,156 @@ impl FitConfig {
     }
 
     /// The compressive floor a fit of `samples` uses: the larger of
-    /// `epsilon` and `epsilon_median` times the median over the samples
-    /// inside the cut-off of rho cos theta_i (the mean of the channels), at
-    /// most [`MAX_EPSILON`]. Depends on the data alone, so the fit stays
-    /// deterministic.
-    pub fn epsilon_for(&self, samples: &MeasuredSamples) -> f64 {
-        if self.epsilon_median <= 0.0 {
-            return self.epsilon;
-        }
+    /// `epsilon` and a fraction of the median over the samples inside the
+    /// cut-off of rho cos theta_i (the mean of the channels), at most
+    /// [`MAX_EPSILON`]. The fraction is `epsilon_median`, or
+    /// `epsilon_median_untrusted` if larger and the data are untrusted
+    /// ([`FloorRule`]). Depends on the data alone, so the objective is one
+    /// fixed weighted least squares and the fit stays deterministic.
+    pub fn floor_rule(&self, samples: &MeasuredSamples) -> FloorRule {
         let cut = self.max_theta.to_radians();
-        let mut v: Vec<f64> = samples
-            .samples
+        let inside = || {
+            samples
+                .samples
+                .iter()
+                .filter(move |s| s.angles.theta_i <= cut && s.angles.theta_o <= cut)
+        };
+        let (mut zeros, mut n) = ([0usize; 3], 0usize);
+        for s in inside() {
+            n += 1;
+            for c in 0..3 {
+                zeros[c] += (s.rgb[c] == 0.0) as usize;
+            }
+        }
+        let zero_fraction = zeros
             .iter()
-            .filter(|s| s.angles.theta_i <= cut && s.angles.theta_o <= cut)
+            .map(|&z| z as f64 / n.max(1) as f64)
+            .fold(0.0, f64::max);
+        let clamped = n > 0 && zero_fraction >= CLAMPED_ZERO_FRACTION;
+        let grazing_asymmetry = self.grazing_asymmetry(samples).0;
+        // NaN (off, or no grazing cells) compares false: not untrusted.
+        let untrusted = clamped || grazing_asymmetry >= self.grazing_trust;
+        let median_fraction = if untrusted {
+            self.epsilon_median.max(self.epsilon_median_untrusted)
+        } else {
+            self.epsilon_median
+        };
+        let mut rule = FloorRule {
+            zero_fraction,
+            clamped,
+            grazing_asymmetry,
+            untrusted,
+            median: 0.0,
+            median_fraction,
+            epsilon: self.epsilon,
+        };
+        if median_fraction <= 0.0 {
+            return rule;
+        }
+        let mut v: Vec<f64> = inside()
             .map(|s| (s.rgb[0] + s.rgb[1] + s.rgb[2]) / 3.0 * s.angles.theta_i.cos().max(0.0))
             .filter(|v| v.is_finite())
             .collect();
         if v.is_empty() {
-            return self.epsilon;
+            return rule;
         }
         let mid = v.len() / 2;
         let (_, median, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-        self.epsilon
-            .max(self.epsilon_median * *median)
-            .min(MAX_EPSILON)
+        rule.median = *median;
+        rule.epsilon = self.epsilon.max(median_fraction * *median).min(MAX_EPSILON);
+        rule
     }
 
-    /// [`FitConfig::sample_options`] with the floor resolved for `samples`.
+    /// The cut-off and taper a fit of `samples` uses: [`GRAZING_MAX_THETA`]
+    /// and a taper from [`GRAZING_TAPER_FROM`] when `grazing_trust` is on,
+    /// no taper is set and the data are not untrusted (`floor`, from
+    /// [`FitConfig::floor_rule`]: not clamped and the grazing cells'
+    /// reciprocity asymmetry below `grazing_trust`); else `max_theta` and
+    /// `taper_from`. Depends on the data alone.
+    pub fn grazing_rule(&self, floor: &FloorRule) -> GrazingRule {
+        let trusted = self.grazing_trust > 0.0
+            && self.taper_from.is_none()
+            && floor.grazing_asymmetry.is_finite()
+            && !floor.untrusted;
+        GrazingRule {
+            asymmetry: floor.grazing_asymmetry,
+            trusted,
+            max_theta_deg: if trusted {
+                GRAZING_MAX_THETA
+            } else {
+                self.max_theta
+            },
+            taper_from_deg: if trusted {
+                Some(GRAZING_TAPER_FROM)
+            } else {
+                self.taper_from
+            },
+        }
+    }
+
+    /// [`GrazingRule::asymmetry`] of `samples` and the number of cells it
+    /// was read from: (NaN, 0) when `grazing_trust` is off, a taper is set,
+    /// the cut-off is already at [`GRAZING_MAX_THETA`] or the data are
+    /// anisotropic.
+    pub fn grazing_asymmetry(&self, samples: &MeasuredSamples) -> (f64, usize) {
+        if self.grazing_trust <= 0.0
+            || self.taper_from.is_some()
+            || self.max_theta >= GRAZING_MAX_THETA
+            || !samples.isotropic
+        {
+            return (f64::NAN, 0);
+        }
+        let (lo, hi) = (self.max_theta.to_radians(), GRAZING_MAX_THETA.to_radians());
+        let q = |x: f64| (x * 1e6).round() as i64;
+        let key = |a: &npf_data_loaders::geometry::Angles, swap: bool| {
+            let (i, o) = if swap {
+                (a.theta_o, a.theta_i)
+            } else {
+                (a.theta_i, a.theta_o)
+            };
+            (q(a.theta_h), q(a.theta_d), q(i), q(o))
+        };
+        let band: Vec<&npf_data_loaders::MeasuredSample> = samples
+            .samples
+            .iter()
+            .filter(|s| {
+                let t = s.angles.theta_i.max(s.angles.theta_o);
+                t > lo && t <= hi
+            })
+            .collect();
+        let value: std::collections::HashMap<_, f64> = band
+            .iter()
+            .map(|s| (key(&s.angles, false), s.rgb.iter().sum::<f64>()))
+            .collect();
+        let mut r: Vec<f64> = band
+            .iter()
+            .filter_map(|s| {
+                let a = s.rgb.iter().sum::<f64>();
+                let b = *value.get(&key(&s.angles, true))?;
+                (a + b > 0.0).then(|| (a - b).abs() / (a + b))
+            })
+            .collect();
+        if r.is_empty() {
+            return (f64::NAN, 0);
+        }
+        let upper = 3 * r.len() / 4;
+        (*r.select_nth_unstable_by(upper, f64::total_cmp).1, r.len())
+    }
+
+    /// The floor [`FitConfig::floor_rule`] chooses for `samples`.
+    pub fn epsilon_for(&self, samples: &MeasuredSamples) -> f64 {
+        self.floor_rule(samples).epsilon
+    }
+
+    /// [`FitConfig::sample_options`] with the floor and the grazing
+    /// cut-off resolved for `samples`.
     pub fn sample_options_for(&self, samples: &MeasuredSamples) -> SampleOptions {
+        let floor = self.floor_rule(samples);
+        let grazing = self.grazing_rule(&floor);
         SampleOptions {
-            epsilon: self.epsilon_for(samples),
+            epsilon: floor.epsilon,
+            max_theta_deg: grazing.max_theta_deg,
+            taper_from_deg: grazing.taper_from_deg,
             ..self.sample_options()
         }
     }
@@ -379,11 +587,24 @@ impl FitConfig {
                 value: self.epsilon,
             });
         }
-        if !(0.0..=MAX_EPSILON_MEDIAN).contains(&self.epsilon_median) {
+        for (name, v) in [
+            ("epsilon_median", self.epsilon_median),
+            ("epsilon_median_untrusted", self.epsilon_median_untrusted),
+        ] {
+            if !(0.0..=MAX_EPSILON_MEDIAN).contains(&v) {
+                return Err(FitError::Range {
+                    name,
+                    range: format!("in [0, {MAX_EPSILON_MEDIAN}]"),
+                    value: v,
+                });
+            }
+        }
+        // An asymmetry |a - b| / (a + b) lies in [0, 1].
+        if !(0.0..=1.0).contains(&self.grazing_trust) {
             return Err(FitError::Range {
-                name: "epsilon_median",
-                range: format!("in [0, {MAX_EPSILON_MEDIAN}]"),
-                value: self.epsilon_median,
+                name: "grazing_trust",
+                range: "in [0, 1]".into(),
+                value: self.grazing_trust,
             });
         }
         for (name, v) in [
@@ -675,6 +896,7 @@ fn fit_measured<'a>(
         // samples are made again.
         crate::memory::release_free();
         let samples = remeasure()?;
+        let floor = config.floor_rule(&samples);
         let metrics = compare_model(&samples, config.max_theta, &result.model);
         check_result(&samples, &result, &metrics)?;
         let kind = config.model;
@@ -687,7 +909,7 @@ fn fit_measured<'a>(
                 result.model.lobe_count()
             },
             weighting: format!("{:?}", config.weighting).to_lowercase(),
-            epsilon: config.epsilon_for(&samples),
+            epsilon: floor.epsilon,
             max_theta_deg: config.max_theta,
             max_theta_h_deg: config.max_theta_h,
             d_monotone_from_deg: config.d_monotone_from,
@@ -712,6 +934,14 @@ fn fit_measured<'a>(
                 v["effective_parameters"] = kind
                     .effective_params(&result.model.layout, config.lobes)
                     .into();
+                // What the data-dependent floor read and chose.
+                if config.weighting == Weighting::Compressive {
+                    v["floor"] = serde_json::to_value(floor).unwrap_or_default();
+                }
+                if config.grazing_trust > 0.0 {
+                    let g = config.grazing_rule(&floor);
+                    v["grazing"] = serde_json::to_value(g).unwrap_or_default();
+                }
                 v
             }),
         };

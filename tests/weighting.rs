@@ -69,28 +69,209 @@ fn pooled_weights_keep_a_phi_d_varying_peak_at_its_mean() {
             pool_scale_below_deg: pool,
             ..Default::default()
         };
-        let set = FitSet::build(&s, Layout::default(), so).unwrap();
-        let res = Executor::new(
-            &set,
-            FitOptions {
-                lobes: 1,
-                max_sweeps: 8,
-                ..Default::default()
-            },
-        )
-        .start_from(Factors::from_model(&truth))
-        .run()
-        .unwrap();
+        let model = fit_one_lobe(&s, so, &truth);
         // The mirror direction at 30 degrees (theta_h = 0).
         let t = 30f64.to_radians();
         let (wi, wo) = ([t.sin(), 0.0, t.cos()], [-t.sin(), 0.0, t.cos()]);
-        let (m, r) = (res.model.eval(wo, wi), truth.eval(wo, wi));
-        // Objectives never rise.
-        assert!(res.objective <= res.initial_objective);
+        let (m, r) = (model.eval(wo, wi), truth.eval(wo, wi));
         (0..3).map(|c| m[c] / r[c]).sum::<f64>() / 3.0
     };
     let pooled = peak_ratio(Some(1.6));
     let own = peak_ratio(None);
     assert!((pooled - 1.0).abs() < 0.1, "pooled peak ratio {pooled}");
     assert!(own < 0.6, "own-value peak ratio {own}");
+}
+
+/// Clamped data (the lowest cells of a known model set to exactly 0, as a
+/// resampling that clamps negative values leaves them): the data-dependent
+/// rule notices the zeros and raises the floor, and the fit then stays
+/// closer to the unclamped truth than one whose floor lets the zeros
+/// dominate. On the unclamped table the rule leaves the floor alone.
+#[test]
+fn clamped_zeros_raise_the_floor_and_keep_the_fit_near_the_truth() {
+    use npf::fit::{FitConfig, CLAMPED_ZERO_FRACTION};
+    use npf::metrics::compare_model;
+    let truth = known_factor_model(Layout::default(), &[0.2]);
+    let clean = to_merl(&truth).samples("synthetic");
+    let config = FitConfig::default();
+    assert!(config.epsilon_median_untrusted > 0.0);
+    let rule = config.floor_rule(&clean);
+    assert_eq!(rule.zero_fraction, 0.0);
+    assert!(!rule.clamped && !rule.untrusted);
+    assert_eq!(rule.epsilon, config.epsilon);
+
+    // Zero the 2 % of cells with the lowest rho cos theta_i (channel mean)
+    // inside the cut-off.
+    let cut = 85f64.to_radians();
+    let level = |x: &npf_data_loaders::MeasuredSample| {
+        x.rgb.iter().sum::<f64>() / 3.0 * x.angles.theta_i.cos()
+    };
+    let mut v: Vec<f64> = clean
+        .samples
+        .iter()
+        .filter(|x| x.angles.theta_i <= cut && x.angles.theta_o <= cut)
+        .map(level)
+        .collect();
+    v.sort_by(f64::total_cmp);
+    let below = v[v.len() / 50];
+    let mut clamped = clean.clone();
+    for x in &mut clamped.samples {
+        if level(x) < below {
+            x.rgb = [0.0; 3];
+        }
+    }
+    let rule = config.floor_rule(&clamped);
+    assert!(
+        rule.clamped && rule.untrusted,
+        "zero fraction {}",
+        rule.zero_fraction
+    );
+    assert!(rule.zero_fraction >= CLAMPED_ZERO_FRACTION);
+    assert!(
+        rule.epsilon > 10.0 * config.epsilon,
+        "floor {}",
+        rule.epsilon
+    );
+    assert_eq!(rule.epsilon, config.epsilon_median_untrusted * rule.median);
+
+    // Fit the clamped table from the truth with the rule's floor and with
+    // the rule off; score both against the unclamped truth.
+    let error = |c: &FitConfig| {
+        let model = fit_one_lobe(&clamped, c.sample_options_for(&clamped), &truth);
+        compare_model(&clean, 85.0, &model).log_rmse
+    };
+    let with_rule = error(&config);
+    let without = error(&FitConfig {
+        epsilon_median_untrusted: 0.0,
+        ..config.clone()
+    });
+    assert!(
+        with_rule < 0.5 * without,
+        "log RMSE against the truth: rule {with_rule:e}, no rule {without:e}"
+    );
+}
+
+/// The grazing rule reads the data's reciprocity: on a table made from a
+/// (reciprocal) known model it fits to 89 degrees with the taper, which
+/// recovers the grazing band (85-89 degrees) better than the 85 degree
+/// cut-off's extrapolation; when the grazing cells disagree with their
+/// reciprocal partners it keeps the cut-off, and that fit stays nearer
+/// the truth inside 85 degrees than one forced to follow those cells.
+#[test]
+fn grazing_trust_follows_the_reciprocity_of_the_grazing_cells() {
+    use npf::fit::{FitConfig, GRAZING_MAX_THETA, GRAZING_TAPER_FROM};
+    use npf::metrics::compare_model;
+    let truth = known_factor_model(Layout::default(), &[0.3]);
+    let clean = to_merl(&truth).samples("synthetic");
+    let on = FitConfig {
+        grazing_trust: 0.2,
+        ..Default::default()
+    };
+    let off = FitConfig {
+        grazing_trust: 0.0,
+        ..on.clone()
+    };
+    let forced = FitConfig {
+        max_theta: GRAZING_MAX_THETA,
+        taper_from: Some(GRAZING_TAPER_FROM),
+        ..off.clone()
+    };
+    let (asymmetry, cells) = on.grazing_asymmetry(&clean);
+    assert!(cells > 1000, "cells {cells}");
+    assert!(asymmetry < 1e-3, "asymmetry {asymmetry}");
+    let floor = on.floor_rule(&clean);
+    assert!(!floor.untrusted);
+    assert_eq!(floor.epsilon, on.epsilon);
+    let rule = on.grazing_rule(&floor);
+    assert!(rule.trusted);
+    assert_eq!(rule.max_theta_deg, GRAZING_MAX_THETA);
+    assert_eq!(rule.taper_from_deg, Some(GRAZING_TAPER_FROM));
+    // Clamped data are never trusted at grazing angles.
+    let clamped = npf::fit::FloorRule {
+        clamped: true,
+        untrusted: true,
+        ..floor
+    };
+    assert!(!on.grazing_rule(&clamped).trusted);
+
+    let start = init_model(&truth);
+    let fit = |data: &npf_data_loaders::MeasuredSamples, c: &FitConfig| {
+        fit_one_lobe(data, c.sample_options_for(data), &start)
+    };
+    // Scored up to 89 degrees: the cut-off fit extrapolates past 85.
+    let trusted = compare_model(&clean, 89.0, &fit(&clean, &on)).log_rmse;
+    let cut = compare_model(&clean, 89.0, &fit(&clean, &off)).log_rmse;
+    assert!(
+        trusted < cut,
+        "log RMSE to 89 deg: trusted {trusted:e}, cut-off {cut:e}"
+    );
+
+    // Grazing cells whose value depends on which direction is the grazing
+    // one (a cell three times its partner): not reciprocal, not trusted.
+    let (lo, hi) = (85f64.to_radians(), 89f64.to_radians());
+    let mut skewed = clean.clone();
+    for x in &mut skewed.samples {
+        let a = x.angles;
+        if a.theta_o > a.theta_i && a.theta_o > lo && a.theta_o <= hi {
+            x.rgb = x.rgb.map(|v| 3.0 * v);
+        }
+    }
+    let floor = on.floor_rule(&skewed);
+    assert!(
+        floor.grazing_asymmetry > 0.2,
+        "asymmetry {}",
+        floor.grazing_asymmetry
+    );
+    assert!(floor.untrusted && !floor.clamped);
+    // Untrusted data get the raised floor.
+    assert_eq!(floor.epsilon, on.epsilon_median_untrusted * floor.median);
+    let rule = on.grazing_rule(&floor);
+    assert!(!rule.trusted);
+    assert_eq!(rule.max_theta_deg, on.max_theta);
+    // The cut-off against following the cells, at the same floor.
+    let same_floor = |c: &FitConfig| FitConfig {
+        epsilon_median_untrusted: 0.0,
+        ..c.clone()
+    };
+    let kept = compare_model(&clean, 85.0, &fit(&skewed, &same_floor(&on))).log_rmse;
+    let followed = compare_model(&clean, 85.0, &fit(&skewed, &same_floor(&forced))).log_rmse;
+    assert!(
+        kept < followed,
+        "log RMSE to 85 deg: rule {kept:e}, forced {followed:e}"
+    );
+}
+
+/// A start near, not at, the truth (G scaled down), so that fits with
+/// different cut-offs end at different points.
+fn init_model(truth: &npf::model::Model) -> npf::model::Model {
+    let mut m = truth.clone();
+    for l in &mut m.lobes {
+        for g in &mut l.g {
+            *g *= 0.8;
+        }
+    }
+    m
+}
+
+/// Eight sweeps of a one-lobe fit of `data` from `start`; the objective
+/// must not rise.
+fn fit_one_lobe(
+    data: &npf_data_loaders::MeasuredSamples,
+    options: SampleOptions,
+    start: &npf::model::Model,
+) -> npf::model::Model {
+    let set = FitSet::build(data, Layout::default(), options).unwrap();
+    let res = Executor::new(
+        &set,
+        FitOptions {
+            lobes: 1,
+            max_sweeps: 8,
+            ..Default::default()
+        },
+    )
+    .start_from(Factors::from_model(start))
+    .run()
+    .unwrap();
+    assert!(res.objective <= res.initial_objective);
+    res.model
 }

@@ -38,6 +38,18 @@ pub struct FitFlags {
     /// exactly-black cells, such as RGL's (docs/fitting.md).
     #[arg(long, default_value_t = defaults().epsilon_median)]
     pub epsilon_median: f64,
+    /// The same fraction for untrusted tables: clamped (at least 1 in 2,000
+    /// of a channel's cells exactly 0) or, with --grazing-trust, not
+    /// reciprocal at grazing angles; the larger of the two applies (0:
+    /// off; docs/fitting.md).
+    #[arg(long, default_value_t = defaults().epsilon_median_untrusted)]
+    pub epsilon_median_untrusted: f64,
+    /// Grazing trust from the data (0: off): a table without clamped cells whose
+    /// grazing cells' reciprocity asymmetry (upper quartile) is below this is fitted
+    /// to 89 degrees with weights tapering from 85, others keep --max-theta
+    /// (docs/fitting.md).
+    #[arg(long, default_value_t = defaults().grazing_trust)]
+    pub grazing_trust: f64,
     /// Below this half angle (degrees) compressive weights use the mean
     /// value over phi_d of each (theta_h, theta_d) row (0: off).
     #[arg(long, default_value_t = defaults().pool_scale_below.unwrap_or(0.0))]
@@ -116,6 +128,8 @@ impl FitFlags {
             weighting: self.weighting,
             epsilon: self.epsilon,
             epsilon_median: self.epsilon_median,
+            epsilon_median_untrusted: self.epsilon_median_untrusted,
+            grazing_trust: self.grazing_trust,
             max_theta: self.max_theta,
             max_theta_h: self.max_theta_h,
             max_sweeps: self.max_sweeps,
