@@ -4,7 +4,8 @@
 //! cosine-weighted and log RMSE, peak memory, and where the fit's time goes.
 //!
 //!     cargo run --release --example fit_bench -- DATA_DIR [--threads N] [--max-sweeps N]
-//!         [--coarse 8,2] [--coarse-tol T] [--tol T] [--save-dir DIR] [--golden-g]
+//!         [--coarse 8,2] [--coarse-tol T] [--coarse-max-sweeps N] [--tol T]
+//!         [--save-dir DIR] [--golden-g]
 //!
 //! `--coarse` lists the decimation factors of coarse-to-fine levels run
 //! before the full set (`npf::coarse`; `--coarse 1` is a plain fit; the
@@ -42,6 +43,7 @@ struct Settings {
     tol: f64,
     coarse: Vec<usize>,
     coarse_tol: f64,
+    coarse_max_sweeps: usize,
     save_dir: Option<String>,
     golden: bool,
 }
@@ -71,6 +73,9 @@ fn main() {
         }),
         coarse_tol: flag(&args, "--coarse-tol")
             .map_or(d.coarse_tol, |v| v.parse().expect("--coarse-tol T")),
+        coarse_max_sweeps: flag(&args, "--coarse-max-sweeps").map_or(d.coarse_max_sweeps, |v| {
+            v.parse().expect("--coarse-max-sweeps N")
+        }),
         save_dir: flag(&args, "--save-dir"),
         golden: args.iter().any(|a| a == "--golden-g"),
     };
@@ -120,6 +125,8 @@ fn main() {
             &coarse.join(","),
             "--coarse-tol",
             &settings.coarse_tol.to_string(),
+            "--coarse-max-sweeps",
+            &settings.coarse_max_sweeps.to_string(),
         ]);
         if let Some(dir) = &settings.save_dir {
             child.args(["--save-dir", dir]);
@@ -167,6 +174,7 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
     let schedule = npf::coarse::Schedule {
         factors: &s.coarse,
         tol: s.coarse_tol,
+        max_sweeps: s.coarse_max_sweeps,
     };
     // Owned: the samples are freed before the full set's sweeps (as in
     // `npf fit`) and made again from the table for the error measures.

@@ -103,6 +103,7 @@ fn study(path: &Path, sweeps: usize) {
             &small,
             FitOptions {
                 tol: cfg.coarse_tol,
+                max_sweeps: cfg.coarse_max_sweeps,
                 ..opts
             },
         )

@@ -83,6 +83,8 @@ pub struct Schedule<'a> {
     /// The levels' tolerance (their sweeps are cheap, so they may run
     /// further than the full set's).
     pub tol: f64,
+    /// The levels' sweep limit (the full set keeps the fit's own).
+    pub max_sweeps: usize,
 }
 
 /// A coarse-to-fine fit's result.
@@ -105,7 +107,8 @@ pub struct CoarseFit {
 /// starting where the previous one ended, then on the full set. The full
 /// set is built while the decimated levels run (the build's serial parts
 /// leave a core free). The decimated levels use `opts` with the
-/// schedule's tolerance; the observer sees the full set's sweeps only.
+/// schedule's tolerance and sweep limit; the observer sees the full set's
+/// sweeps only.
 /// Owned samples are freed once every set is built, before the full set's
 /// sweeps: the measured samples (88 bytes each, 128 MB for a MERL table)
 /// and the solver's caches are then never in memory together.
@@ -154,6 +157,7 @@ fn levels_fit(
     let mut done = Vec::new();
     let level_opts = FitOptions {
         tol: schedule.tol,
+        max_sweeps: schedule.max_sweeps,
         ..opts
     };
     for &factor in schedule.factors.iter().filter(|&&f| f > 1) {

@@ -126,6 +126,11 @@ pub struct FitConfig {
     /// The tolerance of the decimated levels (their sweeps are cheap, so
     /// they may run further than the full set's `tol`).
     pub coarse_tol: f64,
+    /// The sweep limit of the decimated levels. A coarse sweep costs about
+    /// a 16th of a full one, and a level that stops at its limit leaves the
+    /// rest of a long descent to full sweeps (BENCHMARKS.md, issue 15,
+    /// "the extrapolation's tail projection").
+    pub coarse_max_sweeps: usize,
     /// Joint Gauss-Newton steps between sweeps (`solver::gauss_newton`):
     /// `None` uses them on anisotropic layouts only (where AWLS alone
     /// leaves blended lobes slowly: docs/anisotropic.md), `Some` forces.
@@ -172,6 +177,7 @@ impl Default for FitConfig {
             // one level at a 32nd of the samples, run to 1e-3.
             coarse: vec![32],
             coarse_tol: 1e-3,
+            coarse_max_sweeps: 100,
             gauss_newton: None,
             taper_from: s.taper_from_deg,
             masking: o.masking,
@@ -649,6 +655,13 @@ impl FitConfig {
                 value: self.coarse_tol,
             });
         }
+        if self.coarse_max_sweeps == 0 {
+            return Err(FitError::Range {
+                name: "coarse_max_sweeps",
+                range: "at least 1".into(),
+                value: 0.0,
+            });
+        }
         if let Some(&f) = self.coarse.iter().find(|f| !COARSE_FACTORS.contains(f)) {
             return Err(FitError::Range {
                 name: "coarse",
@@ -750,6 +763,7 @@ fn run_kind(
         let schedule = crate::coarse::Schedule {
             factors: &config.coarse,
             tol: config.coarse_tol,
+            max_sweeps: config.coarse_max_sweeps,
         };
         let fitted = crate::coarse::fit(samples, (layout, so), schedule, opts, start, &mut obs)
             .map_err(|e| match e {

@@ -35,6 +35,7 @@ fn coarse_fit(s: &MeasuredSamples, levels: &[usize], opts: FitOptions) -> FitRes
     let schedule = Schedule {
         factors: levels,
         tol: 1e-3,
+        max_sweeps: 50,
     };
     let borrowed = Cow::Borrowed(s);
     let f = fit(borrowed, (layout, so), schedule, opts, start, &mut quiet).unwrap();
@@ -144,6 +145,7 @@ fn too_small_a_level_is_skipped() {
     let schedule = Schedule {
         factors: &[32],
         tol: 1e-3,
+        max_sweeps: 50,
     };
     let borrowed = Cow::Borrowed(&s);
     let f = fit(borrowed, (layout, so), schedule, opts, start, &mut quiet).unwrap();

@@ -99,6 +99,9 @@ pub struct FitFlags {
     /// Tolerance of the coarse levels.
     #[arg(long, default_value_t = defaults().coarse_tol)]
     pub coarse_tol: f64,
+    /// Sweep limit of the coarse levels.
+    #[arg(long, default_value_t = defaults().coarse_max_sweeps)]
+    pub coarse_max_sweeps: usize,
     /// Grazing taper: past this angle (degrees) a sample's weight falls
     /// linearly to 0 at the horizon; use with a cut-off near 90, e.g.
     /// `--max-theta 89 --taper-from 80` (see docs/fitting.md).
@@ -146,6 +149,7 @@ impl FitFlags {
             diffuse: self.diffuse,
             coarse: self.coarse.clone(),
             coarse_tol: self.coarse_tol,
+            coarse_max_sweeps: self.coarse_max_sweeps,
             gauss_newton: self.gauss_newton,
             taper_from: self.taper_from,
             masking: self.masking,

@@ -457,8 +457,8 @@ pub(super) fn d_monotone_from(set: &FitSet, deg: Option<f64>) -> usize {
 }
 
 /// x + beta (x - old), clamped at 0, for every table (both in canonical
-/// form); D may not exceed x's largest D value, and D tails are projected
-/// back onto non-increasing ones (along theta, in every phi column).
+/// form); D is projected by [`project_d`] (no larger than x's largest D
+/// value; tails no less monotone than x's).
 ///
 /// A cap that follows the peak's own trend (max + beta (max - previous
 /// max)) was measured on 2026-12-02: nylon's full set then takes 3 sweeps,
@@ -498,15 +498,27 @@ fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> F
 /// A trial D table (from an extrapolation or a joint step away from the
 /// current table `x`) made admissible: D and G trade off freely where G is
 /// nearly 0 (D G G is all the data sees), and a step along that valley
-/// would grow D without bound, so it may not raise D's maximum; the tail
-/// past `monotone_from` is made non-increasing along theta (`np` phi columns).
+/// would grow D without bound, so it may not raise D's maximum; past
+/// `monotone_from` an entry may not rise above the one before it along
+/// theta (`np` phi columns) unless `x` already does, and then not above
+/// `x`'s own value: the interval the D update itself allows.
+///
+/// Forcing every tail non-increasing instead (as before 2026-12-03) moved
+/// the tails the D update leaves above their neighbour (it never forces
+/// them down), so a trial of step 0 already raised the objective by 3-7 %
+/// and most trials were refused (white-fabric's coarse level: 0 of 49).
 fn project_d(d: &mut [f64], x: &[f64], np: usize, monotone_from: usize) {
     let top = x.iter().cloned().fold(0.0, f64::max);
     for v in d.iter_mut() {
         *v = v.min(top);
     }
     for k in (monotone_from.max(1).saturating_mul(np)).min(d.len())..d.len() {
-        d[k] = d[k].min(d[k - np]);
+        let bound = if x[k] <= x[k - np] {
+            d[k - np]
+        } else {
+            d[k - np].max(x[k])
+        };
+        d[k] = d[k].min(bound);
     }
 }
 
@@ -578,5 +590,21 @@ mod tests {
         assert_eq!(e.d[0][20], 1.5);
         // G extrapolates freely, clamped at 0.
         assert!(e.g[0].iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn projection_keeps_the_current_table_and_monotone_tails() {
+        // A tail the D update left rising (entry 6 above entry 5): a step
+        // of 0 must give the current table back (the old projection forced
+        // it down, so a trial at the current point raised the objective).
+        let x = vec![4.0, 3.0, 2.0, 1.5, 1.0, 0.5, 0.8, 0.4];
+        let mut d = x.clone();
+        project_d(&mut d, &x, 1, 4);
+        assert_eq!(d, x);
+        // Where x's tail is non-increasing, the trial's is made so too;
+        // where x rises, the trial may rise up to x's own value only.
+        let mut d = vec![4.0, 3.0, 2.0, 1.5, 0.9, 1.2, 2.0, 0.45];
+        project_d(&mut d, &x, 1, 4);
+        assert_eq!(d, vec![4.0, 3.0, 2.0, 1.5, 0.9, 0.9, 0.9, 0.45]);
     }
 }

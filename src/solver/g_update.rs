@@ -182,10 +182,7 @@ pub(crate) fn update_g(
         // Each sample appears once in a point's list, so the entries touch
         // distinct samples and can be applied in parallel.
         let shared = Disjoint::new(&mut work[..]);
-        let chunks = range.len().div_ceil(CHUNK);
-        (0..chunks).into_par_iter().for_each(|ci| {
-            let lo = range.start + ci * CHUNK;
-            let hi = (lo + CHUNK).min(range.end);
+        let apply = |lo: usize, hi: usize| {
             for e in lo..hi {
                 // SAFETY: distinct samples within one point's list (see GIncidence::build).
                 let x = unsafe { shared.get(inc.sample[e] as usize) };
@@ -196,7 +193,16 @@ pub(crate) fn update_g(
                 x.gi += u * t;
                 x.go += v * t;
             }
-        });
+        };
+        let chunks = range.len().div_ceil(CHUNK);
+        if chunks <= 1 {
+            apply(range.start, range.end);
+        } else {
+            (0..chunks).into_par_iter().for_each(|ci| {
+                let lo = range.start + ci * CHUNK;
+                apply(lo, (lo + CHUNK).min(range.end));
+            });
+        }
     }
     apply_work(set, st, m, work, |a, b| a * b);
     stats

@@ -206,6 +206,11 @@ pub(crate) fn chunked_sum<const K: usize>(
 ) -> [f64; K] {
     use rayon::prelude::*;
     let chunks = n.div_ceil(CHUNK);
+    if chunks <= 1 {
+        // One chunk: the same sum without a parallel dispatch (a G pass
+        // makes 540 such sums a sweep; on a coarse level most are this small).
+        return sum_in_order(vec![f(0..n)]);
+    }
     let partial: Vec<[f64; K]> = (0..chunks)
         .into_par_iter()
         .map(|c| f(c * CHUNK..((c + 1) * CHUNK).min(n)))
