@@ -527,8 +527,13 @@ impl FitConfig {
     /// [`FitConfig::sample_options`] with the floor and the grazing
     /// cut-off resolved for `samples`.
     pub fn sample_options_for(&self, samples: &MeasuredSamples) -> SampleOptions {
-        let floor = self.floor_rule(samples);
-        let grazing = self.grazing_rule(&floor);
+        self.sample_options_with(&self.floor_rule(samples))
+    }
+
+    /// [`FitConfig::sample_options`] with the floor and the grazing
+    /// cut-off of a rule already read from the data.
+    pub fn sample_options_with(&self, floor: &FloorRule) -> SampleOptions {
+        let grazing = self.grazing_rule(floor);
         SampleOptions {
             epsilon: floor.epsilon,
             max_theta_deg: grazing.max_theta_deg,
@@ -695,6 +700,9 @@ struct Produced {
     ggx: Option<GgxParams>,
     /// Size of the fit set, where one was built for the whole fit.
     set_len: Option<usize>,
+    /// What the data-dependent floor read and chose (read once, before the
+    /// samples are freed).
+    floor: FloorRule,
 }
 
 /// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
@@ -750,7 +758,8 @@ fn run_kind(
     config.validate()?;
     check_representable(&samples)?;
     let layout = config.layout_for(&samples);
-    let so = config.sample_options_for(&samples);
+    let floor = config.floor_rule(&samples);
+    let so = config.sample_options_with(&floor);
     // Both factor kinds are one run of the shared solver; Independent-G is
     // three lobes with lobe C lighting channel C only, so the objective
     // separates per channel and this solves the three per-channel problems
@@ -774,6 +783,7 @@ fn run_kind(
             result: fitted.result,
             ggx: None,
             set_len: Some(fitted.set_len),
+            floor,
         })
     };
     let mut produced = match config.model {
@@ -819,6 +829,7 @@ fn run_kind(
                 },
                 ggx: Some(fit.params),
                 set_len: None,
+                floor,
             })
         }
     }?;
@@ -905,12 +916,12 @@ fn fit_measured<'a>(
             result,
             ggx,
             set_len,
+            floor,
         } = run_kind(samples, config, observer)?;
         // The sets and caches are freed; their pages go back before the
         // samples are made again.
         crate::memory::release_free();
         let samples = remeasure()?;
-        let floor = config.floor_rule(&samples);
         let metrics = compare_model(&samples, config.max_theta, &result.model);
         check_result(&samples, &result, &metrics)?;
         let kind = config.model;
