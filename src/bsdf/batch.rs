@@ -203,8 +203,10 @@ impl NpfBxdf {
         }
         let Some(flat) = self.flat() else {
             out.resize(0);
-            for j in 0..n {
-                out.push(self.sample(wo.get(j), u[0][j], [u[1][j], u[2][j]]));
+            // (u_lobe, [u0, u1]) of draw j, in order.
+            let us = u[0].iter().zip(u[1].iter().zip(u[2])).enumerate();
+            for (j, (&uc, (&u0, &u1))) in us {
+                out.push(self.sample(wo.get(j), uc, [u0, u1]));
             }
             return Ok(());
         };
