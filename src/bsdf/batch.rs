@@ -6,6 +6,7 @@
 //! their dependency chains interleaved (see docs/sampling.md, "Batch
 //! interface").
 
+use super::lanes::{F64x2x2, Lanes4};
 use super::{BsdfError, BsdfSample, Component, NpfBxdf};
 use npf_data_loaders::geometry::Vec3;
 
@@ -111,7 +112,9 @@ impl SampleBatch {
         }
     }
 
-    fn clear(&mut self) {
+    /// n entries, their old values kept (a pass writes every field before
+    /// anything reads it); 0 clears.
+    fn resize(&mut self, n: usize) {
         let SampleBatch {
             wi,
             f,
@@ -120,10 +123,10 @@ impl SampleBatch {
             component,
         } = self;
         for v in wi.iter_mut().chain(f.iter_mut()).chain(weight.iter_mut()) {
-            v.clear();
+            v.resize(n, 0.0);
         }
-        pdf.clear();
-        component.clear();
+        pdf.resize(n, 0.0);
+        component.resize(n, Component::Diffuse);
     }
 
     fn push(&mut self, s: BsdfSample) {
@@ -184,8 +187,9 @@ impl NpfBxdf {
 
     /// [`NpfBxdf::sample`] for every view wo[j] with random numbers
     /// (u[0][j], [u[1][j], u[2][j]]) (component, then direction), into
-    /// `out` (cleared first): exactly the per-call draws. The draws are
-    /// made one by one, their values four at a time by the flat
+    /// `out` (resized to wo's length): exactly the per-call draws. The
+    /// draws are made four at a time ([`NpfBxdf::draw4`]: their
+    /// arithmetic in lanes), their values four at a time by the flat
     /// evaluator. An error when the lengths differ.
     pub fn sample_batch(
         &self,
@@ -197,29 +201,17 @@ impl NpfBxdf {
         for v in u {
             same_len("random numbers", n, v.len())?;
         }
-        out.clear();
-        // (u_lobe, [u0, u1]) of draw j, in order.
-        let us = u[0].iter().zip(u[1].iter().zip(u[2])).enumerate();
         let Some(flat) = self.flat() else {
+            out.resize(0);
+            // (u_lobe, [u0, u1]) of draw j, in order.
+            let us = u[0].iter().zip(u[1].iter().zip(u[2])).enumerate();
             for (j, (&uc, (&u0, &u1))) in us {
                 out.push(self.sample(wo.get(j), uc, [u0, u1]));
             }
             return Ok(());
         };
-        for (j, (&uc, (&u0, &u1))) in us {
-            let s = match self.draw(wo.get(j), uc, [u0, u1]) {
-                // The value comes below; pdf and wi as drawn for now.
-                Ok((wi, pdf, component)) => BsdfSample {
-                    wi,
-                    f: [0.0; 3],
-                    pdf,
-                    weight: [0.0; 3],
-                    component,
-                },
-                Err(lost) => lost,
-            };
-            out.push(s);
-        }
+        out.resize(n);
+        self.draw_slices(wo, u, out);
         let SampleBatch {
             wi,
             f,
@@ -231,8 +223,9 @@ impl NpfBxdf {
         flat.eval_slices(wo.slices(), [&wi[0], &wi[1], &wi[2]], [f0, f1, f2]);
         for j in 0..n {
             if !(pdf[j] > 0.0) {
-                // Lost: zero value, as the per-call sample reports it.
-                (0..3).for_each(|c| f[c][j] = 0.0);
+                // Lost: zero value and weight, as the per-call sample
+                // reports it.
+                (0..3).for_each(|c| (f[c][j], weight[c][j]) = (0.0, 0.0));
                 continue;
             }
             // BsdfSample::new's weight and checks.
@@ -245,5 +238,53 @@ impl NpfBxdf {
             }
         }
         Ok(())
+    }
+}
+
+impl NpfBxdf {
+    /// The draws of `sample_batch` into `out` (wi, pdf and component of
+    /// each entry; `out` already has `wo`'s length), four at a time by
+    /// [`NpfBxdf::draw4`]: AVX2 lanes where the CPU has them (detected at
+    /// run time), SSE2 pairs otherwise; the same draws either way.
+    fn draw_slices(&self, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn run(b: &NpfBxdf, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
+                b.draw_slices_in::<super::lanes::avx::F64x4>(wo, u, out)
+            }
+            // SAFETY: AVX2 was detected just above.
+            return unsafe { run(self, wo, u, out) };
+        }
+        self.draw_slices_in::<F64x2x2>(wo, u, out)
+    }
+
+    /// [`NpfBxdf::draw_slices`] in lane type V; a lost draw gets pdf 0.
+    #[inline(always)]
+    fn draw_slices_in<V: Lanes4>(&self, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
+        let n = wo.len();
+        let mut k = 0;
+        while k < n {
+            // The last group repeats its final draw in its unused slots.
+            let at = [0, 1, 2, 3].map(|j| (k + j).min(n - 1));
+            let drawn = self.draw4::<V>(
+                at.map(|j| wo.get(j)),
+                at.map(|j| u[0][j]),
+                at.map(|j| [u[1][j], u[2][j]]),
+            );
+            for (j, d) in drawn.into_iter().enumerate().take(n - k) {
+                // The value comes later; pdf and wi as drawn for now.
+                let (w, pdf, component) = match d {
+                    Ok(d) => d,
+                    Err(lost) => (lost.wi, lost.pdf, lost.component),
+                };
+                for (c, &x) in w.iter().enumerate() {
+                    out.wi[c][k + j] = x;
+                }
+                out.pdf[k + j] = pdf;
+                out.component[k + j] = component;
+            }
+            k += 4;
+        }
     }
 }

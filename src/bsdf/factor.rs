@@ -14,9 +14,10 @@
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use super::f64x2::{floor_index, F64x2};
-use super::flat::{acos2, FlatEval};
-use super::{cosine_hemisphere, reflect, unit, Bsdf, BsdfError, BsdfSample, Component};
+use super::f64x2::floor_index;
+use super::flat::{acos_lanes, FlatEval};
+use super::lanes::{Lanes, Lanes4};
+use super::{cosine_hemisphere, unit, Bsdf, BsdfError, BsdfSample, Component};
 use crate::model::Model;
 use crate::sampling::{PiecewiseConstant, PiecewiseConstant2D};
 use npf_data_loaders::geometry::{Angles, Vec3};
@@ -318,16 +319,10 @@ impl NpfBxdf {
     /// the row below and the weight of the row above.
     #[inline(always)]
     fn selection_row(&self, cos_o: f64) -> (usize, f64) {
-        // Nodes per radian of theta_o.
-        const PER_RAD: f64 = (VIEW_NODES - 1) as f64 * 180.0 / (VIEW_MAX_DEG * PI);
         // The branch-free arccosine (views at random angles would
         // mispredict fdlibm's branches); a cos_o below 0 lands on the last
         // node either way.
-        let theta = acos2(F64x2::splat(cos_o.clamp(0.0, 1.0))).lo();
-        let x = (theta * PER_RAD).clamp(0.0, (VIEW_NODES - 1) as f64);
-        // x >= 0 (or NaN, 0 either way): truncation is floor, without libm.
-        let k = floor_index(x).min(VIEW_NODES - 2);
-        (k, x - k as f64)
+        row_at_angle(acos_lanes(cos_o.clamp(0.0, 1.0)))
     }
 
     /// Probability that `sample` uses component c (0 diffuse, 1 + m lobe m)
@@ -393,7 +388,8 @@ impl NpfBxdf {
         row: (usize, f64),
     ) -> Option<(f64, Option<((usize, f64), Vec3, f64, f64)>)> {
         let pdf = self.diffuse_pdf(wi, row);
-        let lobe = lobe_jacobian(wo, wi).map(|(h, t, jac)| (row, h, t, jac));
+        let lobe = lobe_jacobian(wo, wi)
+            .and_then(|jac| half_vector(wi, wo).map(|(h, t)| (row, h, t, jac)));
         Some((pdf, lobe))
     }
 
@@ -509,17 +505,111 @@ impl NpfBxdf {
     /// The draw of [`NpfBxdf::sample`] for an isotropic model without its
     /// value: (wi, pdf, component), or the lost sample.
     #[inline]
-    pub(crate) fn draw(
-        &self,
-        wo: Vec3,
-        u_lobe: f64,
-        u: [f64; 2],
-    ) -> Result<(Vec3, f64, Component), BsdfSample> {
+    pub(crate) fn draw(&self, wo: Vec3, u_lobe: f64, u: [f64; 2]) -> Drawn {
         if !(wo[2] > 0.0) {
             return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         }
-        let nc = self.components();
         let row = self.selection_row(wo[2]);
+        match self.pick(row, u_lobe, u)? {
+            Pick::Diffuse(wi) => self.finish_diffuse(wo, row, wi),
+            Pick::Lobe {
+                m,
+                cell,
+                t,
+                dv,
+                sign,
+            } => {
+                let r = reflection::<f64>(wo, t, sign, azimuth_centre(cell.1), dv);
+                self.finish_lobe(wo, row, m, cell, &r)
+            }
+        }
+    }
+
+    /// [`NpfBxdf::draw`] of four views at once, exactly its results (bit
+    /// for bit, tested): the view arccosines and each lobe draw's
+    /// reflection and Jacobian in four lanes `V` (the square roots, the
+    /// azimuth polynomials, the frame's division), the four draws'
+    /// component choices, table searches and density reads one by one
+    /// (independent, so the core overlaps them). Every lane sees the
+    /// operations of `draw` in its order.
+    // No closures around lane operations (see `FlatEval::eval4`).
+    #[inline(always)]
+    pub(crate) fn draw4<V: Lanes4>(
+        &self,
+        wo: [Vec3; 4],
+        u_lobe: [f64; 4],
+        u: [[f64; 2]; 4],
+    ) -> [Drawn; 4] {
+        let mut cos = [0.0; 4];
+        for k in 0..4 {
+            cos[k] = wo[k][2].clamp(0.0, 1.0);
+        }
+        let theta = acos_lanes(V::load(&cos)).to_array();
+        // Lanes of other draws get a harmless lobe draw, then discarded.
+        let (mut t, mut sign, mut dv) = ([0.0; 4], [1.0; 4], [0.5; 4]);
+        let (mut sc, mut cc) = ([0.0; 4], [1.0; 4]);
+        let mut rows = [(0, 0.0); 4];
+        let mut picks = [Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse)); 4];
+        for k in 0..4 {
+            rows[k] = row_at_angle(theta[k]);
+            if wo[k][2] > 0.0 {
+                picks[k] = self.pick(rows[k], u_lobe[k], u[k]);
+            }
+            if let Ok(Pick::Lobe {
+                cell,
+                t: tk,
+                dv: d,
+                sign: s,
+                ..
+            }) = picks[k]
+            {
+                [sc[k], cc[k]] = azimuth_centre(cell.1);
+                (t[k], sign[k], dv[k]) = (tk, s, d);
+            }
+        }
+        let column = |c: usize| [wo[0][c], wo[1][c], wo[2][c], wo[3][c]];
+        let (o0, o1, o2) = (column(0), column(1), column(2));
+        let r = reflection::<V>(
+            [V::load(&o0), V::load(&o1), V::load(&o2)],
+            V::load(&t),
+            V::load(&sign),
+            [V::load(&sc), V::load(&cc)],
+            V::load(&dv),
+        );
+        let (wi0, wi1, wi2) = (r.wi[0].to_array(), r.wi[1].to_array(), r.wi[2].to_array());
+        let wo_h = r.wo_h.to_array();
+        let (s_z, wo_s) = (r.jac.s_z.to_array(), r.jac.wo_s.to_array());
+        let (r2, jac) = (r.jac.r2.to_array(), r.jac.jac.to_array());
+        let mut out = picks.map(|p| p.map(|_| ([0.0; 3], 0.0, Component::Diffuse)));
+        for k in 0..4 {
+            out[k] = match picks[k] {
+                Err(lost) => Err(lost),
+                Ok(Pick::Diffuse(wi)) => self.finish_diffuse(wo[k], rows[k], wi),
+                Ok(Pick::Lobe { m, cell, .. }) => {
+                    let r = Reflection {
+                        wi: [wi0[k], wi1[k], wi2[k]],
+                        wo_h: wo_h[k],
+                        jac: JacobianParts {
+                            s_z: s_z[k],
+                            wo_s: wo_s[k],
+                            r2: r2[k],
+                            jac: jac[k],
+                        },
+                    };
+                    self.finish_lobe(wo[k], rows[k], m, cell, &r)
+                }
+            };
+        }
+        out
+    }
+
+    /// The scalar first half of a draw at a view's selection-table
+    /// position: the component from `u_lobe` and, for a lobe, the cells
+    /// its table draws (the diffuse direction whole). The lost sample
+    /// when there is nothing to draw from or the direction is unusable.
+    #[inline(always)]
+    fn pick(&self, row: (usize, f64), u_lobe: f64, u: [f64; 2]) -> Result<Pick, BsdfSample> {
+        let nc = self.components();
         let mut component = None;
         let mut acc = 0.0;
         let mut last = None;
@@ -538,36 +628,70 @@ impl NpfBxdf {
         let Some(c) = component.or(last) else {
             return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         };
-        let (wi, component, pdf) = if c == 0 {
+        if c == 0 {
             let wi = cosine_hemisphere(u);
             if !(wi[2] > 0.0) {
                 return Err(BsdfSample::lost(wi, Component::Diffuse));
             }
-            (wi, Component::Diffuse, self.pdf_at(wo, wi, row))
+            return Ok(Pick::Diffuse(wi));
+        }
+        let m = c - 1;
+        let tables = self.lobes[m].as_ref().expect("selected lobes have tables");
+        // u[1]: the sign of the relative azimuth (below or above 1/2) and,
+        // rescaled, its magnitude.
+        let v = unit(u[1]);
+        let (sign, v) = if v < 0.5 {
+            (1.0, 2.0 * v)
         } else {
-            let m = c - 1;
-            let tables = self.lobes[m].as_ref().expect("selected lobes have tables");
-            let (h, cell) = sample_half_vector(&tables[view_node(row)], wo, u);
-            let wi = reflect(wo, h);
-            let wo_h = dot(wo, h);
-            if !(wo_h > 0.0 && wi[2] > 0.0) {
-                return Err(BsdfSample::lost(wi, Component::Lobe(m)));
-            }
-            // The drawn cell is where pdf finds wi's half vector (up to
-            // rounding at a cell edge): its density row serves directly.
-            // The Jacobian is pdf's own, from wi (the same rounding).
-            let pdf = match lobe_jacobian(wo, wi) {
-                Some((_, _, jac)) => {
-                    self.add_lobe_densities(self.diffuse_pdf(wi, row), row, cell, jac)
-                }
-                None => self.pdf_at(wo, wi, row),
-            };
-            (wi, Component::Lobe(m), pdf)
+            (-1.0, (2.0 * v - 1.0).min(1.0))
+        };
+        let (i, t, j, dv) = tables[view_node(row)].sample_cells([u[0], v]);
+        Ok(Pick::Lobe {
+            m,
+            cell: (i, j),
+            t,
+            dv,
+            sign,
+        })
+    }
+
+    /// A diffuse draw's result: its mixture pdf.
+    #[inline(always)]
+    fn finish_diffuse(&self, wo: Vec3, row: (usize, f64), wi: Vec3) -> Drawn {
+        let pdf = self.pdf_at(wo, wi, row);
+        if !(pdf > 0.0) {
+            return Err(BsdfSample::lost(wi, Component::Diffuse));
+        }
+        Ok((wi, pdf, Component::Diffuse))
+    }
+
+    /// A lobe draw's result from its reflection: lost below the horizon,
+    /// else its mixture pdf.
+    #[inline(always)]
+    fn finish_lobe(
+        &self,
+        wo: Vec3,
+        row: (usize, f64),
+        m: usize,
+        cell: (usize, usize),
+        r: &Reflection<f64>,
+    ) -> Drawn {
+        let wi = r.wi;
+        if !(r.wo_h > 0.0 && wi[2] > 0.0) {
+            return Err(BsdfSample::lost(wi, Component::Lobe(m)));
+        }
+        // The drawn cell is where pdf finds wi's half vector (up to
+        // rounding at a cell edge): its density row serves directly. The
+        // Jacobian is pdf's own, from wi (the drawn h's differs by rounding
+        // that grazing views amplify past 1e-12 relative).
+        let pdf = match r.jac.valid() {
+            Some(jac) => self.add_lobe_densities(self.diffuse_pdf(wi, row), row, cell, jac),
+            None => self.pdf_at(wo, wi, row),
         };
         if !(pdf > 0.0) {
-            return Err(BsdfSample::lost(wi, component));
+            return Err(BsdfSample::lost(wi, Component::Lobe(m)));
         }
-        Ok((wi, pdf, component))
+        Ok((wi, pdf, Component::Lobe(m)))
     }
 
     /// Probability that [`NpfBxdf::sample`] returns a draw below the
@@ -635,17 +759,106 @@ impl NpfBxdf {
     }
 }
 
-/// The half vector h of (wo, wi), t = sin^2 theta_h and the Jacobian
-/// `cos theta_h / (4 wo.h)` from the tables' density to solid angle of wi,
-/// when a lobe could have drawn wi (h above the surface and facing wo).
-#[inline]
-fn lobe_jacobian(wo: Vec3, wi: Vec3) -> Option<(Vec3, f64, f64)> {
-    half_vector(wi, wo).and_then(|(h, t)| {
-        let wo_h = dot(wo, h);
+/// A draw of [`NpfBxdf::draw`]: (wi, pdf, component), or the lost sample.
+pub(crate) type Drawn = Result<(Vec3, f64, Component), BsdfSample>;
+
+/// The scalar first half of a draw (see `NpfBxdf::pick`).
+#[derive(Clone, Copy, Debug)]
+enum Pick {
+    /// A diffuse direction, above the horizon.
+    Diffuse(Vec3),
+    /// Lobe m's table cells (t cell, azimuth cell), t in its cell, the
+    /// azimuth's position dv in [0, 1] in its cell and its sign (1 or -1).
+    Lobe {
+        m: usize,
+        cell: (usize, usize),
+        t: f64,
+        dv: f64,
+        sign: f64,
+    },
+}
+
+/// What the lobe Jacobian is made of, from s = wi + wo (h's direction,
+/// whose length cancels): `jac = s.z / (4 wo.s)`, the tables' density to
+/// solid angle of wi (`cos theta_h / (4 wo.h)`: one division and no square
+/// root, `sample` computes it for every draw); valid when s.z > 0, wo.s > 0
+/// and t = r2 / |s|^2 < 1, with r2 = s.x^2 + s.y^2.
+#[derive(Clone, Copy, Debug)]
+struct JacobianParts<V> {
+    s_z: V,
+    wo_s: V,
+    r2: V,
+    jac: V,
+}
+
+#[inline(always)]
+fn jacobian_parts<V: Lanes>(wo: [V; 3], wi: [V; 3]) -> JacobianParts<V> {
+    let s = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
+    let wo_s = wo[0] * s[0] + wo[1] * s[1] + wo[2] * s[2];
+    JacobianParts {
+        s_z: s[2],
+        wo_s,
+        r2: s[0] * s[0] + s[1] * s[1],
         // Density per solid angle of h: (table density / 2) over signed
         // azimuths, times dt dphi / dOmega_h = 2 cos theta_h.
-        (h[2] > 0.0 && wo_h > 0.0 && (0.0..1.0).contains(&t)).then(|| (h, t, h[2] / (4.0 * wo_h)))
-    })
+        jac: s[2] / (V::splat(4.0) * wo_s),
+    }
+}
+
+impl JacobianParts<f64> {
+    /// The Jacobian when a lobe could have drawn wi (its half vector above
+    /// the surface, facing wo, t < 1 as `half_vector` forms t).
+    #[inline(always)]
+    fn valid(&self) -> Option<f64> {
+        let ok = self.s_z > 0.0 && self.wo_s > 0.0 && self.r2 < self.r2 + self.s_z * self.s_z;
+        ok.then_some(self.jac)
+    }
+}
+
+/// The Jacobian `cos theta_h / (4 wo.h)` from the tables' density to
+/// solid angle of wi, when a lobe could have drawn wi (see
+/// [`JacobianParts`]).
+#[inline]
+fn lobe_jacobian(wo: Vec3, wi: Vec3) -> Option<f64> {
+    jacobian_parts::<f64>(wo, wi).valid()
+}
+
+/// A lobe draw's reflected direction, wo.h and its Jacobian's parts.
+#[derive(Clone, Copy, Debug)]
+struct Reflection<V> {
+    wi: [V; 3],
+    wo_h: V,
+    jac: JacobianParts<V>,
+}
+
+/// The half vector of a lobe draw (t = sin^2 theta_h, the azimuth at dv
+/// in the cell with centre (sin, cos) `centre`, of sign `sign`, relative
+/// to wo's azimuth) and its reflection of wo, lane by lane.
+#[inline(always)]
+fn reflection<V: Lanes>(wo: [V; 3], t: V, sign: V, centre: [V; 2], dv: V) -> Reflection<V> {
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
+    let (sin_h, cos_h) = (t.sqrt(), (one - t).max(zero).sqrt());
+    let (sp, cp) = azimuth_sin_cos(centre, dv);
+    let (hx, hy) = (sin_h * cp, sign * sin_h * sp);
+    // Unit vectors along wo's azimuth, ex, and ey = (-ex.y, ex.x); x and y
+    // for a wo at the normal.
+    let r2 = wo[0] * wo[0] + wo[1] * wo[1];
+    let inv = one / r2.sqrt();
+    let tiny = V::splat(1e-30);
+    let (ex0, ex1) = (
+        tiny.lt_select(r2, wo[0] * inv, one),
+        tiny.lt_select(r2, wo[1] * inv, zero),
+    );
+    // hx ex + hy ey (hy (-ex.y) added is hy ex.y subtracted, exactly).
+    let h = [hx * ex0 - hy * ex1, hx * ex1 + hy * ex0, cos_h];
+    let wo_h = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
+    let k = V::splat(2.0) * wo_h;
+    let wi = [k * h[0] - wo[0], k * h[1] - wo[1], k * h[2] - wo[2]];
+    Reflection {
+        wi,
+        wo_h,
+        jac: jacobian_parts(wo, wi),
+    }
 }
 
 /// Fraction of azimuths phi_h for which the reflection of wo (polar angle
@@ -671,6 +884,18 @@ fn azimuth_lost_fraction(t: f64, cos_o: f64, sin_o: f64) -> f64 {
     } else {
         1.0 - c.acos() / PI
     }
+}
+
+/// The selection-table position (row below, weight of the row above) of
+/// a view at angle theta (radians).
+#[inline(always)]
+fn row_at_angle(theta: f64) -> (usize, f64) {
+    // Nodes per radian of theta_o.
+    const PER_RAD: f64 = (VIEW_NODES - 1) as f64 * 180.0 / (VIEW_MAX_DEG * PI);
+    let x = (theta * PER_RAD).clamp(0.0, (VIEW_NODES - 1) as f64);
+    // x >= 0 (or NaN, 0 either way): truncation is floor, without libm.
+    let k = floor_index(x).min(VIEW_NODES - 2);
+    (k, x - k as f64)
 }
 
 /// The nearest view node of a view at selection-table position (k, w)
@@ -728,54 +953,34 @@ fn azimuth_cell(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> usize {
     EDGE_COS.iter().filter(|&&c| x <= c * r).count()
 }
 
-/// A half vector drawn from a lobe's view table, with its (t, azimuth)
-/// cell: u[0] picks t, u[1] the sign of the relative azimuth (below or
-/// above 1/2) and, rescaled, its magnitude.
-#[inline]
-fn sample_half_vector(
-    table: &PiecewiseConstant2D,
-    wo: Vec3,
-    u: [f64; 2],
-) -> (Vec3, (usize, usize)) {
-    let v = unit(u[1]);
-    let (sign, v) = if v < 0.5 {
-        (1.0, 2.0 * v)
-    } else {
-        (-1.0, (2.0 * v - 1.0).min(1.0))
-    };
-    let (i, t, j, dv) = table.sample_cells([u[0], v]);
-    let (sin_h, cos_h) = (t.sqrt(), (1.0 - t).max(0.0).sqrt());
-    let (sp, cp) = azimuth_sin_cos(j, dv);
-    let (hx, hy) = (sin_h * cp, sign * sin_h * sp);
-    let (ex, ey) = azimuth_frame(wo);
-    (
-        [hx * ex[0] + hy * ey[0], hx * ex[1] + hy * ey[1], cos_h],
-        (i, j),
-    )
-}
-
-/// (sin, cos) of the azimuth (j + dv) pi / PHI_CELLS, dv in [0, 1]: the
-/// cell centre's (tabulated) rotated by a = (dv - 1/2) pi / PHI_CELLS,
-/// |a| <= pi / 16, whose sine and cosine are Taylor polynomials with
-/// remainders below 1e-18 (tested against `f64::sin_cos`).
-#[inline]
-fn azimuth_sin_cos(j: usize, dv: f64) -> (f64, f64) {
+/// (sin, cos) of the centre (j + 1/2) pi / PHI_CELLS of azimuth cell j.
+#[inline(always)]
+fn azimuth_centre(j: usize) -> [f64; 2] {
     const _: () = assert!(PHI_CELLS == 8, "CENTRE holds the centres of 8 cells");
-    // (sin, cos) of (j + 1/2) pi / 8.
-    const CENTRE: [(f64, f64); PHI_CELLS] = {
+    const CENTRE: [[f64; 2]; PHI_CELLS] = {
         let (s1, c1) = (0.195_090_322_016_128_26, 0.980_785_280_403_230_4);
         let (s3, c3) = (0.555_570_233_019_602_2, 0.831_469_612_302_545_2);
         [
-            (s1, c1),
-            (s3, c3),
-            (c3, s3),
-            (c1, s1),
-            (c1, -s1),
-            (c3, -s3),
-            (s3, -c3),
-            (s1, -c1),
+            [s1, c1],
+            [s3, c3],
+            [c3, s3],
+            [c1, s1],
+            [c1, -s1],
+            [c3, -s3],
+            [s3, -c3],
+            [s1, -c1],
         ]
     };
+    CENTRE[j.min(PHI_CELLS - 1)]
+}
+
+/// (sin, cos) of the azimuth (j + dv) pi / PHI_CELLS, dv in [0, 1], lane
+/// by lane: the cell centre's `[sc, cc]` (from `azimuth_centre`) rotated
+/// by a = (dv - 1/2) pi / PHI_CELLS, |a| <= pi / 16, whose sine and cosine
+/// are Taylor polynomials with remainders below 1e-18 (tested against
+/// `f64::sin_cos`).
+#[inline(always)]
+fn azimuth_sin_cos<V: Lanes>([sc, cc]: [V; 2], dv: V) -> (V, V) {
     // Taylor coefficients (-1)^k / (2k+1)! and (-1)^k / (2k)!.
     const S: [f64; 5] = [
         -1.0 / 6.0,
@@ -792,12 +997,14 @@ fn azimuth_sin_cos(j: usize, dv: f64) -> (f64, f64) {
         -1.0 / 3_628_800.0,
         1.0 / 479_001_600.0,
     ];
-    let a = (dv - 0.5) * (PI / PHI_CELLS as f64);
+    let c = V::splat;
+    let a = (dv - c(0.5)) * c(PI / PHI_CELLS as f64);
     let a2 = a * a;
-    let sin_a = a + a * a2 * (S[0] + a2 * (S[1] + a2 * (S[2] + a2 * (S[3] + a2 * S[4]))));
-    let cos_a =
-        1.0 + a2 * (C[0] + a2 * (C[1] + a2 * (C[2] + a2 * (C[3] + a2 * (C[4] + a2 * C[5])))));
-    let (sc, cc) = CENTRE[j.min(PHI_CELLS - 1)];
+    let sin_a =
+        a + a * a2 * (c(S[0]) + a2 * (c(S[1]) + a2 * (c(S[2]) + a2 * (c(S[3]) + a2 * c(S[4])))));
+    let cos_a = c(1.0)
+        + a2 * (c(C[0])
+            + a2 * (c(C[1]) + a2 * (c(C[2]) + a2 * (c(C[3]) + a2 * (c(C[4]) + a2 * c(C[5]))))));
     (sc * cos_a + cc * sin_a, cc * cos_a - sc * sin_a)
 }
 
@@ -1079,13 +1286,85 @@ mod tests {
         for j in 0..PHI_CELLS {
             for k in 0..=1000 {
                 let dv = k as f64 / 1000.0;
-                let (s, c) = azimuth_sin_cos(j, dv);
+                let (s, c) = azimuth_sin_cos::<f64>(azimuth_centre(j), dv);
                 let (s0, c0) = ((j as f64 + dv) * PI / PHI_CELLS as f64).sin_cos();
                 worst = worst.max((s - s0).abs()).max((c - c0).abs());
             }
         }
         // Within a few ulps of 1 (both sides round).
         assert!(worst <= 1e-15, "worst {worst:e}");
+    }
+
+    /// draw4 in lane type V against draw, bit for bit, on views that
+    /// include the normal, grazing and invalid ones and random numbers
+    /// at and outside [0, 1].
+    fn check_draw4<V: Lanes4>(b: &NpfBxdf) -> usize {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let odd = [0.0, 1.0, 1.0 - 1e-17, 0.5, f64::NAN, -0.25, 2.0];
+        let (mut drawn, mut n) = (0, 0);
+        while n < 20_000 {
+            let mut wo = [[0.0; 3]; 4];
+            let (mut ul, mut u) = ([0.0; 4], [[0.0; 2]; 4]);
+            for k in 0..4 {
+                let z = match n % 97 {
+                    0 => 1.0,
+                    1 => 1e-9,
+                    2 => -0.3,
+                    3 => f64::NAN,
+                    _ => next(),
+                };
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let p = next() * std::f64::consts::TAU;
+                wo[k] = [r * p.cos(), r * p.sin(), z];
+                ul[k] = next();
+                u[k] = [next(), next()];
+                if n % 89 < 3 {
+                    u[k][n % 2] = odd[n % odd.len()];
+                    ul[k] = odd[(n / 2) % odd.len()];
+                }
+                n += 1;
+            }
+            let got = b.draw4::<V>(wo, ul, u);
+            for k in 0..4 {
+                let one = b.draw(wo[k], ul[k], u[k]);
+                let bits = |d: &Drawn| match d {
+                    Ok((wi, pdf, c)) => (wi.map(f64::to_bits), pdf.to_bits(), *c),
+                    Err(l) => (l.wi.map(f64::to_bits), l.pdf.to_bits(), l.component),
+                };
+                assert_eq!(bits(&got[k]), bits(&one), "{wo:?} {ul:?} {u:?} lane {k}");
+                drawn += usize::from(one.is_ok());
+            }
+        }
+        drawn
+    }
+
+    #[test]
+    fn four_draws_at_once_equal_one_at_a_time_bit_for_bit() {
+        let mut with_diffuse = known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]);
+        with_diffuse.diffuse = [0.2, 0.1, 0.05];
+        for model in [
+            with_diffuse,
+            known_factor_model(Layout::isotropic(30), &[0.3]),
+        ] {
+            let b = NpfBxdf::new(model).unwrap();
+            // Not vacuous: most draws carry light.
+            assert!(check_draw4::<super::super::lanes::F64x2x2>(&b) > 10_000);
+            #[cfg(target_arch = "x86_64")]
+            if is_x86_feature_detected!("avx2") {
+                #[target_feature(enable = "avx2")]
+                fn avx(b: &NpfBxdf) -> usize {
+                    check_draw4::<super::super::lanes::avx::F64x4>(b)
+                }
+                // SAFETY: AVX2 was detected.
+                assert!(unsafe { avx(&b) } > 10_000);
+            }
+        }
     }
 
     #[test]

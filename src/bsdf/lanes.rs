@@ -56,6 +56,44 @@ impl Lanes for F64x2 {
     }
 }
 
+/// One lane: the per-call form of code written over lanes (min, max and
+/// the select with SSE2's semantics, so every lane type gives the same
+/// values, NaN included).
+impl Lanes for f64 {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        if self < o {
+            self
+        } else {
+            o
+        }
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        if self > o {
+            self
+        } else {
+            o
+        }
+    }
+    #[inline(always)]
+    fn lt_select(self, o: Self, a: Self, b: Self) -> Self {
+        if self < o {
+            a
+        } else {
+            b
+        }
+    }
+}
+
 /// Four lanes as two [`F64x2`] pairs (lanes 0-1, 2-3): the portable form,
 /// and what the per-call evaluator uses for its four lobes.
 #[derive(Clone, Copy, Debug)]
@@ -210,6 +248,21 @@ mod tests {
         assert_eq!(a.max(b).to_array(), [1.5, 7.0, 1.0, 4.0]);
         assert_eq!(a.lt_select(b, a, b).to_array()[..3], [0.3, -2.25, 1.0]);
         assert_eq!(V::splat(2.0).to_array(), [2.0; 4]);
+    }
+
+    #[test]
+    fn one_lane_has_the_sse2_semantics() {
+        let (nan, v) = (f64::NAN, F64x2x2::load(&[1.5, f64::NAN, 1.0, -0.0]));
+        let o = F64x2x2::load(&[0.3, 1.0, f64::NAN, 0.0]);
+        let (a, b) = (v.to_array(), o.to_array());
+        let lanes = |f: &dyn Fn(f64, f64) -> f64| [0, 1, 2, 3].map(|k| f(a[k], b[k]).to_bits());
+        let bits = |x: F64x2x2| x.to_array().map(f64::to_bits);
+        assert_eq!(lanes(&|x, y| Lanes::min(x, y)), bits(v.min(o)));
+        assert_eq!(lanes(&|x, y| Lanes::max(x, y)), bits(v.max(o)));
+        assert_eq!(
+            lanes(&|x, y| x.lt_select(y, 2.0, nan)),
+            bits(v.lt_select(o, F64x2x2::splat(2.0), F64x2x2::splat(nan)))
+        );
     }
 
     #[test]

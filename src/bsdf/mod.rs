@@ -98,7 +98,11 @@ impl BsdfSample {
             wi,
             f,
             pdf,
-            weight: f.map(|v| v * wi[2] / pdf),
+            // One division for the three channels.
+            weight: {
+                let k = wi[2] / pdf;
+                f.map(|v| v * k)
+            },
             component,
         }
     }

@@ -103,7 +103,7 @@ impl PiecewiseConstant {
     }
 
     /// [`PiecewiseConstant::sample`] with the index of the cell drawn.
-    #[inline]
+    #[inline(always)]
     pub fn sample_cell(&self, u: f64) -> (usize, f64) {
         let n = self.cells();
         let u = if u.is_finite() {

@@ -98,7 +98,7 @@ impl PiecewiseConstant2D {
     /// [`PiecewiseConstant2D::sample`] with the cells it draws: (x cell i,
     /// x, y cell j, the position of y within cell j in [0, 1]); y is
     /// `(j + dv) * y_max / ny`, which lies in cell j.
-    #[inline]
+    #[inline(always)]
     pub fn sample_cells(&self, u: [f64; 2]) -> (usize, f64, usize, f64) {
         let (i, x) = self.marginal.sample_cell(u[0]);
         let v = if u[1].is_finite() {
@@ -106,11 +106,20 @@ impl PiecewiseConstant2D {
         } else {
             0.0
         };
-        let row = &self.cdf[i * (self.ny + 1)..(i + 1) * (self.ny + 1)];
-        let mut j = row
-            .partition_point(|&c| c <= v)
-            .saturating_sub(1)
-            .min(self.ny - 1);
+        let ny = self.ny;
+        let row = &self.cdf[i * (ny + 1)..(i + 1) * (ny + 1)];
+        // The last j with row[j] <= v (row[0] = 0 <= v), as a binary search
+        // finds it, by fixed steps without data-dependent branches (a
+        // random v would mispredict half of a search's branches): indices
+        // past the row read its last entry, which only overshoots when
+        // row[ny] <= v, where the answer is clamped to ny - 1 anyway.
+        let mut j = 0;
+        let mut step = (ny + 1).next_power_of_two() / 2;
+        while step > 0 {
+            j += step * usize::from(row[(j + step).min(ny)] <= v);
+            step /= 2;
+        }
+        let mut j = j.min(ny - 1);
         while row[j + 1] <= row[j] && j > 0 {
             j -= 1;
         }
