@@ -151,19 +151,33 @@ pub(crate) fn update_g(
         }
         let range = inc.entries(k);
         let wv = &work[..];
+        let term = |e: usize, acc: &mut [f64; 4]| {
+            let x = &wv[inc.sample[e] as usize];
+            let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
+            let p1 = x.gi * v + x.go * u;
+            let p2 = u * v;
+            acc[0] += 2.0 * x.sr * p1;
+            acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
+            acc[2] += 2.0 * x.sa * p1 * p2;
+            acc[3] += x.sa * p2 * p2;
+        };
         let c = chunked_sum(range.len(), |r| {
-            let mut acc = [0.0; 4];
-            for e in range.start + r.start..range.start + r.end {
-                let x = &wv[inc.sample[e] as usize];
-                let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
-                let p1 = x.gi * v + x.go * u;
-                let p2 = u * v;
-                acc[0] += 2.0 * x.sr * p1;
-                acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
-                acc[2] += 2.0 * x.sa * p1 * p2;
-                acc[3] += x.sa * p2 * p2;
+            // Even and odd entries in separate sums: each sum is a chain
+            // of dependent additions, so one chain would wait on the
+            // adder's latency, two overlap (a fixed order, so still the
+            // same result for any thread count).
+            let (mut even, mut odd) = ([0.0; 4], [0.0; 4]);
+            let (lo, hi) = (range.start + r.start, range.start + r.end);
+            let mut e = lo;
+            while e + 1 < hi {
+                term(e, &mut even);
+                term(e + 1, &mut odd);
+                e += 2;
             }
-            acc
+            if e < hi {
+                term(e, &mut even);
+            }
+            std::array::from_fn(|i| even[i] + odd[i])
         });
         let x = st.factors.g[m][k];
         let t = match method {
