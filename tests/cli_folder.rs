@@ -213,8 +213,8 @@ fn folder_options_are_checked_before_any_fit() {
     );
     // --form and --jobs belong to folder inputs.
     for flag in [["--form", "npfb"], ["--jobs", "2"]] {
-        let single = dir.path().join("x.json");
-        let mut args = vec!["fit", s(&input.join("a.binary")), "-o", s(&single)];
+        let (table, single) = (input.join("a.binary"), dir.path().join("x.json"));
+        let mut args = vec!["fit", s(&table), "-o", s(&single)];
         args.extend(flag);
         refused(&npf(&args), "only for a folder input");
     }
