@@ -206,18 +206,18 @@ fn folder_options_are_checked_before_any_fit() {
     let empty = dir.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
     refused(&fit_folder(&empty, &out, &[]), "no measured tables");
-    // --form belongs to folder inputs.
+    // --jobs: at least one.
     refused(
-        &npf(&[
-            "fit",
-            s(&input.join("a.binary")),
-            "-o",
-            s(&dir.path().join("x.json")),
-            "--form",
-            "npfb",
-        ]),
-        "only for a folder input",
+        &fit_folder(&input, &out, &["--jobs", "0"]),
+        "--jobs must be at least 1",
     );
+    // --form and --jobs belong to folder inputs.
+    for flag in [["--form", "npfb"], ["--jobs", "2"]] {
+        let (table, single) = (input.join("a.binary"), dir.path().join("x.json"));
+        let mut args = vec!["fit", s(&table), "-o", s(&single)];
+        args.extend(flag);
+        refused(&npf(&args), "only for a folder input");
+    }
 }
 
 #[test]
@@ -246,4 +246,93 @@ fn folder_outputs_take_the_form_asked_for() {
     assert_eq!(row(&rows, "x.y.binary")["status"], "skipped");
     assert_eq!(row(&rows, "x.y.binary")["parameters"], "822");
     assert_eq!(row(&rows, "x.y.binary")["sweeps"], "");
+}
+
+/// The lines of stderr that report a table, as `[k/n] file`.
+fn table_lines(err: &str) -> Vec<String> {
+    err.lines()
+        .filter(|l| l.starts_with('['))
+        .map(|l| l.split(':').next().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn concurrent_fits_give_the_models_of_a_sequential_run_in_the_same_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    std::fs::create_dir(&input).unwrap();
+    for (k, alpha) in [0.1, 0.2, 0.35, 0.5].into_iter().enumerate() {
+        GgxLambert {
+            kd: [0.05 * k as f64, 0.1, 0.2],
+            f0: [0.9, 0.5, 0.04 + 0.1 * k as f64],
+            alpha,
+        }
+        .table()
+        .write(&input.join(format!("t{k}.binary")), false)
+        .unwrap();
+    }
+    // A failure amid the fits is reported in its place; the rest go on.
+    std::fs::write(input.join("t2.binary"), b"not a table").unwrap();
+    let run = |out: &str, jobs: &str, threads: &str| {
+        let out = dir.path().join(out);
+        let o = fit_folder(
+            &input,
+            &out,
+            &["--form", "npfb", "--jobs", jobs, "--threads", threads],
+        );
+        assert!(!o.status.success());
+        (out, stderr(&o))
+    };
+    let (one, err_one) = run("one", "1", "1");
+    let (three, err_three) = run("three", "3", "3");
+    assert!(err_one.contains("one at a time, 1 thread"), "{err_one}");
+    assert!(
+        err_three.contains("3 at a time, 1 thread each"),
+        "{err_three}"
+    );
+    // Lines in name order whatever finished first, as in a sequential run.
+    let expected: Vec<String> = (0..4)
+        .map(|k| format!("[{}/4] t{k}.binary", k + 1))
+        .collect();
+    assert_eq!(table_lines(&err_one), expected, "{err_one}");
+    assert_eq!(table_lines(&err_three), expected, "{err_three}");
+    assert!(err_three.contains("t2.binary: FAILED"), "{err_three}");
+    // The models are byte for byte those of the one-at-a-time run.
+    for k in [0, 1, 3] {
+        let name = format!("t{k}.npfb");
+        let a = std::fs::read(one.join(&name)).unwrap();
+        assert_eq!(a, std::fs::read(three.join(&name)).unwrap(), "{name}");
+    }
+    assert!(!three.join("t2.npfb").exists());
+    // The summary's rows in name order, the same statuses and figures.
+    let (r1, r3) = (summary(&one), summary(&three));
+    let files: Vec<&str> = r3.iter().map(|r| r["file"].as_str()).collect();
+    assert_eq!(files, ["t0.binary", "t1.binary", "t2.binary", "t3.binary"]);
+    for (a, b) in r1.iter().zip(&r3) {
+        for col in ["file", "status", "parameters", "error"] {
+            assert_eq!(a[col], b[col], "{col}");
+        }
+    }
+    // JSON models (with the fit record): the same fit as well, with the
+    // threads each fit had recorded.
+    let (oj, tj) = (dir.path().join("oj"), dir.path().join("tj"));
+    std::fs::remove_file(input.join("t2.binary")).unwrap();
+    for (out, jobs) in [(&oj, "1"), (&tj, "2")] {
+        let o = fit_folder(&input, out, &["--jobs", jobs, "--threads", "2", "--quiet"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    for k in [0, 1, 3] {
+        let name = format!("t{k}.json");
+        let a = npf::modelfile::read(&oj.join(&name)).unwrap();
+        let b = npf::modelfile::read(&tj.join(&name)).unwrap();
+        let (fa, fb) = (a.fit.unwrap(), b.fit.unwrap());
+        assert_eq!((fa.threads, fb.threads), (2, 1), "{name}");
+        assert_eq!(fa.objective.to_bits(), fb.objective.to_bits(), "{name}");
+        assert_eq!(fa.sweeps, fb.sweeps, "{name}");
+        assert_eq!(
+            npf::modelfile::to_binary(&a.model),
+            npf::modelfile::to_binary(&b.model),
+            "{name}"
+        );
+    }
 }

@@ -254,6 +254,10 @@ pub struct FitArgs {
     /// Folder input only: the form of the models written [default: json].
     #[arg(long, value_enum)]
     pub form: Option<ModelForm>,
+    /// Folder input only: tables fitted at once, each with its share of
+    /// --threads [default: from the cores and the free memory].
+    #[arg(long, value_name = "N")]
+    pub jobs: Option<usize>,
     /// How to fit.
     #[command(flatten)]
     pub config: FitFlags,
@@ -340,6 +344,9 @@ pub fn run(args: FitArgs) -> CliResult {
             "--form {}: only for a folder input (a single output's extension picks its form)",
             form.extension()
         )));
+    }
+    if args.jobs.is_some() {
+        return Err(CliError::Message("--jobs: only for a folder input".into()));
     }
     modelfile::Form::of(&args.output)?;
     let config = args.config.config(args.model);

@@ -8,12 +8,16 @@
 //! the exit status is non-zero at the end if any failed. Existing outputs
 //! are kept (the run resumes) unless `--force`. `OUTDIR/summary.csv` records
 //! every table of the run (fitted, skipped or failed); it is this run's own
-//! record, rewritten (atomically) by each run.
+//! record, rewritten (atomically) by each run. Several tables are fitted
+//! at once ([`Plan`]); lines and rows keep the name order.
 
 use super::fit::{fit_table, FitArgs, ModelForm};
 use super::{CliError, CliResult};
 use crate::modelfile;
+use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
 use std::time::Instant;
 
 /// The summary's file name in the output folder.
@@ -27,6 +31,81 @@ enum Outcome {
     Skipped,
     /// Failed: the message names the file and the problem.
     Failed(String),
+}
+
+/// What a worker tells the main thread.
+enum Event {
+    /// It began the table of this index.
+    Started(usize),
+    /// It finished the table of this index.
+    Done(usize, Row),
+}
+
+/// Memory set aside for each concurrent fit when `--jobs` is not given: a
+/// MERL fit peaks at about 290 MB; the rest is headroom for glibc's
+/// per-thread arenas.
+const FIT_MEMORY: u64 = 400 << 20;
+
+/// How many tables are fitted at once, and with how many threads each.
+///
+/// One fit keeps two cores busy only part of the time (the read, parts of
+/// the sample set's construction, the small coarse-level loops, the error
+/// re-measure and the write are serial), so a folder is fitted faster as
+/// several fits of fewer threads each. Fits do not depend on the thread
+/// count, so the models are those of a one-at-a-time run.
+struct Plan {
+    jobs: usize,
+    threads: usize,
+}
+
+impl Plan {
+    /// `jobs` from `--jobs` (`None`: as many as the thread budget and the
+    /// free memory allow); `threads` from `--threads`, the run's budget (0:
+    /// every core), shared among the jobs; `todo` tables to fit.
+    fn new(jobs: Option<usize>, threads: usize, todo: usize) -> Result<Plan, CliError> {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let budget = if threads == 0 { cores } else { threads };
+        let jobs = match jobs {
+            Some(0) => return Err(CliError::Message("--jobs must be at least 1".into())),
+            Some(n) => n,
+            None => budget.min(cores).min(memory_jobs()),
+        };
+        // No more workers than tables to fit (skipped tables cost nothing),
+        // so a resumed run's last fits keep all threads.
+        let jobs = jobs.min(todo).max(1);
+        Ok(Plan {
+            jobs,
+            threads: (budget / jobs).max(1),
+        })
+    }
+
+    fn describe(&self) -> String {
+        let threads = if self.threads == 1 {
+            "thread"
+        } else {
+            "threads"
+        };
+        if self.jobs == 1 {
+            format!("one at a time, {} {threads}", self.threads)
+        } else {
+            format!("{} at a time, {} {threads} each", self.jobs, self.threads)
+        }
+    }
+}
+
+/// How many fits of [`FIT_MEMORY`] the available memory holds (at least
+/// one; unlimited where the system does not say).
+fn memory_jobs() -> usize {
+    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|m| {
+        m.lines()
+            .find_map(|l| l.strip_prefix("MemAvailable:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+    });
+    available.map_or(usize::MAX, |kb| {
+        usize::try_from(kb.saturating_mul(1024) / FIT_MEMORY)
+            .unwrap_or(usize::MAX)
+            .max(1)
+    })
 }
 
 /// One row of the summary.
@@ -198,10 +277,20 @@ pub fn run(args: FitArgs) -> CliResult {
     }
     prepare_output_dir(&args.output, &args.input)?;
 
+    let todo = tables
+        .iter()
+        .filter(|t| args.force || output_of(t).symlink_metadata().is_err())
+        .count();
+    let plan = Plan::new(args.jobs, config.threads, todo)?;
+    let config = crate::fit::FitConfig {
+        threads: plan.threads,
+        ..config
+    };
+
     let say = !args.quiet;
     if say {
         eprintln!(
-            "fitting {} tables from {} into {}{}",
+            "fitting {} tables from {} into {}{}; {}",
             tables.len(),
             args.input.display(),
             args.output.display(),
@@ -209,7 +298,8 @@ pub fn run(args: FitArgs) -> CliResult {
                 format!(" ({others} other entries ignored)")
             } else {
                 String::new()
-            }
+            },
+            plan.describe()
         );
     }
     let bar = if say {
@@ -225,50 +315,82 @@ pub fn run(args: FitArgs) -> CliResult {
         .progress_chars("=> "),
     );
     let start = Instant::now();
-    let mut rows = Vec::with_capacity(tables.len());
-    for (k, table) in tables.iter().enumerate() {
-        let name = table
-            .file_name()
+    let name_of = |t: &Path| {
+        t.file_name()
             .unwrap_or_default()
             .to_string_lossy()
-            .into_owned();
-        bar.set_message(name.clone());
-        let output = output_of(table);
-        let row = fit_one(table, &output, name, &args, &config);
-        let line = match &row.outcome {
-            Outcome::Fitted => format!(
-                "{}: {} parameters, {} sweeps{}, {:.2} s, log RMSE {:.4e} -> {}",
-                row.file,
-                row.parameters.unwrap_or(0),
-                row.sweeps.unwrap_or(0),
-                if row.converged == Some(false) {
-                    " (sweep limit)"
-                } else {
-                    ""
-                },
-                row.seconds.unwrap_or(0.0),
-                row.log_rmse.unwrap_or(f64::NAN),
-                output.display()
-            ),
-            Outcome::Skipped => format!(
-                "{}: skipped, {} exists (--force refits)",
-                row.file,
-                output.display()
-            ),
-            Outcome::Failed(e) => format!("{}: FAILED: {e}", row.file),
-        };
-        // A failure is said even with --quiet.
-        if say || matches!(row.outcome, Outcome::Failed(_)) {
-            bar.suspend(|| eprintln!("[{}/{}] {line}", k + 1, tables.len()));
+            .into_owned()
+    };
+    // Workers take the tables in name order; their rows come back in any
+    // order and are said (and kept) in name order, so the lines and the
+    // summary are the same whatever finished first.
+    let next = AtomicUsize::new(0);
+    let (tx, rx) = mpsc::channel::<Event>();
+    let mut done: Vec<Option<Row>> = tables.iter().map(|_| None).collect();
+    std::thread::scope(|scope| -> CliResult {
+        for j in 0..plan.jobs {
+            let tx = tx.clone();
+            let (next, tables, config) = (&next, &tables, &config);
+            let (args, output_of, name_of) = (&args, &output_of, &name_of);
+            std::thread::Builder::new()
+                .name(format!("npf-fit-{j}"))
+                // The main thread's stack size: the read runs here.
+                .stack_size(8 << 20)
+                .spawn_scoped(scope, move || loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(table) = tables.get(k) else { break };
+                    if tx.send(Event::Started(k)).is_err() {
+                        break;
+                    }
+                    let name = name_of(table);
+                    let fitted = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                        fit_one(table, &output_of(table), name.clone(), args, config)
+                    }));
+                    // A bug in one fit is that table's failure; the others go on.
+                    let row = fitted.unwrap_or_else(|_| {
+                        Row::new(name, Outcome::Failed("internal error (panic)".into()))
+                    });
+                    // The fit's buffers were freed in whichever thread's
+                    // malloc arena held them; hand them back, or the next
+                    // table's fit (in other arenas) would stack on them: 4
+                    // MERL tables peaked at 581 MB instead of one fit's 434 MB.
+                    crate::memory::release_free();
+                    if tx.send(Event::Done(k, row)).is_err() {
+                        break;
+                    }
+                })
+                .map_err(|e| CliError::Message(format!("cannot start a fitting thread: {e}")))?;
         }
-        rows.push(row);
-        bar.inc(1);
-        // The fit's buffers were freed in whichever thread's malloc arena
-        // held them; hand them back, or the next table's fit (in other
-        // arenas) would stack on them: 4 MERL tables peaked at 581 MB
-        // instead of one fit's 434 MB.
-        crate::memory::release_free();
-    }
+        drop(tx);
+        let mut running = std::collections::BTreeSet::new();
+        let mut said = 0;
+        for event in rx {
+            match event {
+                Event::Started(k) => {
+                    running.insert(k);
+                }
+                Event::Done(k, row) => {
+                    running.remove(&k);
+                    done[k] = Some(row);
+                    bar.inc(1);
+                }
+            }
+            let names: Vec<String> = running.iter().map(|&k| name_of(&tables[k])).collect();
+            bar.set_message(names.join(", "));
+            while let Some(Some(row)) = done.get(said) {
+                let line = table_line(row, &output_of(&tables[said]));
+                // A failure is said even with --quiet.
+                if say || matches!(row.outcome, Outcome::Failed(_)) {
+                    bar.suspend(|| eprintln!("[{}/{}] {line}", said + 1, tables.len()));
+                }
+                said += 1;
+            }
+        }
+        Ok(())
+    })?;
+    // Every worker ran to the end of the list (a worker that could not
+    // start leaves the run above with its error).
+    let rows: Vec<Row> = done.into_iter().flatten().collect();
     bar.finish_and_clear();
 
     let summary = args.output.join(SUMMARY);
@@ -299,6 +421,32 @@ pub fn run(args: FitArgs) -> CliResult {
             failed.join(", "),
             summary.display()
         )))
+    }
+}
+
+/// The line said for a finished table.
+fn table_line(row: &Row, output: &Path) -> String {
+    match &row.outcome {
+        Outcome::Fitted => format!(
+            "{}: {} parameters, {} sweeps{}, {:.2} s, log RMSE {:.4e} -> {}",
+            row.file,
+            row.parameters.unwrap_or(0),
+            row.sweeps.unwrap_or(0),
+            if row.converged == Some(false) {
+                " (sweep limit)"
+            } else {
+                ""
+            },
+            row.seconds.unwrap_or(0.0),
+            row.log_rmse.unwrap_or(f64::NAN),
+            output.display()
+        ),
+        Outcome::Skipped => format!(
+            "{}: skipped, {} exists (--force refits)",
+            row.file,
+            output.display()
+        ),
+        Outcome::Failed(e) => format!("{}: FAILED: {e}", row.file),
     }
 }
 
