@@ -803,7 +803,10 @@ fn run_kind(
             })?;
         crate::phases::note("full set built after", fitted.set_seconds);
         for l in &fitted.levels {
-            crate::phases::note(&format!("coarse 1/{} ({} sweeps)", l.factor, l.sweeps), l.seconds);
+            crate::phases::note(
+                &format!("coarse 1/{} ({} sweeps)", l.factor, l.sweeps),
+                l.seconds,
+            );
         }
         crate::phases::mark("fit (set, coarse, sweeps)");
         Ok::<_, FitError>(Produced {

@@ -80,7 +80,11 @@ impl Lap {
     pub fn new(what: &str, n: usize) -> Self {
         let on = enabled();
         Lap {
-            what: if on { format!("{what} ({n})") } else { String::new() },
+            what: if on {
+                format!("{what} ({n})")
+            } else {
+                String::new()
+            },
             last: on.then(Instant::now),
             laps: Vec::new(),
         }
