@@ -10,7 +10,7 @@ use crate::coarse::CoarseError;
 use crate::metrics::{compare_model, Metrics};
 use crate::model::Layout;
 use crate::modelfile::FitInfo;
-use crate::samples::{SampleError, SampleOptions, Weighting};
+use crate::samples::{round_to_i64, KeyMap, SampleError, SampleOptions, Weighting};
 use crate::solver::{
     init, DiffuseKind, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
     INDEPENDENT_CHANNELS,
@@ -390,20 +390,30 @@ impl FitConfig {
     /// ([`FloorRule`]). Depends on the data alone, so the objective is one
     /// fixed weighted least squares and the fit stays deterministic.
     pub fn floor_rule(&self, samples: &MeasuredSamples) -> FloorRule {
+        use rayon::prelude::*;
         let cut = self.max_theta.to_radians();
+        // Parallel passes: counts are exact in any order, and the median
+        // is a rank, the same for any order of the values.
         let inside = || {
             samples
                 .samples
-                .iter()
+                .par_iter()
                 .filter(move |s| s.angles.theta_i <= cut && s.angles.theta_o <= cut)
         };
-        let (mut zeros, mut n) = ([0usize; 3], 0usize);
-        for s in inside() {
-            n += 1;
-            for c in 0..3 {
-                zeros[c] += (s.rgb[c] == 0.0) as usize;
-            }
-        }
+        let (zeros, n) = inside()
+            .fold(
+                || ([0usize; 3], 0usize),
+                |(mut zeros, n), s| {
+                    for c in 0..3 {
+                        zeros[c] += (s.rgb[c] == 0.0) as usize;
+                    }
+                    (zeros, n + 1)
+                },
+            )
+            .reduce(
+                || ([0usize; 3], 0usize),
+                |(a, n), (b, m)| (std::array::from_fn(|c| a[c] + b[c]), n + m),
+            );
         let zero_fraction = zeros
             .iter()
             .map(|&z| z as f64 / n.max(1) as f64)
@@ -482,8 +492,9 @@ impl FitConfig {
         {
             return (f64::NAN, 0);
         }
+        use rayon::prelude::*;
         let (lo, hi) = (self.max_theta.to_radians(), GRAZING_MAX_THETA.to_radians());
-        let q = |x: f64| (x * 1e6).round() as i64;
+        let q = |x: f64| round_to_i64(x * 1e6);
         let key = |a: &npf_data_loaders::geometry::Angles, swap: bool| {
             let (i, o) = if swap {
                 (a.theta_o, a.theta_i)
@@ -492,20 +503,23 @@ impl FitConfig {
             };
             (q(a.theta_h), q(a.theta_d), q(i), q(o))
         };
+        // The band in input order (a later duplicate key overwrites an
+        // earlier one, as in a serial pass); the quartile is a rank, the
+        // same for any order of the ratios.
         let band: Vec<&npf_data_loaders::MeasuredSample> = samples
             .samples
-            .iter()
+            .par_iter()
             .filter(|s| {
                 let t = s.angles.theta_i.max(s.angles.theta_o);
                 t > lo && t <= hi
             })
             .collect();
-        let value: std::collections::HashMap<_, f64> = band
+        let value: KeyMap<_, f64> = band
             .iter()
             .map(|s| (key(&s.angles, false), s.rgb.iter().sum::<f64>()))
             .collect();
         let mut r: Vec<f64> = band
-            .iter()
+            .par_iter()
             .filter_map(|s| {
                 let a = s.rgb.iter().sum::<f64>();
                 let b = *value.get(&key(&s.angles, true))?;
@@ -707,6 +721,8 @@ struct Produced {
 
 /// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
 fn check_representable(samples: &MeasuredSamples) -> Result<(), FitError> {
+    // Serial: a parallel scan measured 4 times the CPU time on the shared
+    // machine for this one comparison a value.
     let big = samples
         .samples
         .iter()
@@ -757,9 +773,15 @@ fn run_kind(
 ) -> Result<Produced, FitError> {
     config.validate()?;
     check_representable(&samples)?;
+    crate::phases::mark("check values");
     let layout = config.layout_for(&samples);
     let floor = config.floor_rule(&samples);
     let so = config.sample_options_with(&floor);
+    // The rule's parallel passes left their freed buffers in the worker
+    // threads' heaps, which the set build would not reuse (up to 13 MB
+    // more peak memory measured).
+    crate::memory::release_free();
+    crate::phases::mark("floor rule");
     // Both factor kinds are one run of the shared solver; Independent-G is
     // three lobes with lobe C lighting channel C only, so the objective
     // separates per channel and this solves the three per-channel problems
@@ -779,6 +801,14 @@ fn run_kind(
                 CoarseError::Samples(e) => FitError::Samples(e),
                 CoarseError::Solver(e) => FitError::Solver(e),
             })?;
+        crate::phases::note("full set built after", fitted.set_seconds);
+        for l in &fitted.levels {
+            crate::phases::note(
+                &format!("coarse 1/{} ({} sweeps)", l.factor, l.sweeps),
+                l.seconds,
+            );
+        }
+        crate::phases::mark("fit (set, coarse, sweeps)");
         Ok::<_, FitError>(Produced {
             result: fitted.result,
             ggx: None,
@@ -921,8 +951,10 @@ fn fit_measured<'a>(
         // The sets and caches are freed; their pages go back before the
         // samples are made again.
         crate::memory::release_free();
+        crate::phases::mark("release");
         let samples = remeasure()?;
         let metrics = compare_model(&samples, config.max_theta, &result.model);
+        crate::phases::mark("error measures");
         check_result(&samples, &result, &metrics)?;
         let kind = config.model;
         let info = FitInfo {

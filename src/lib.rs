@@ -138,6 +138,7 @@ pub mod microfacet;
 pub mod model;
 pub mod modelfile;
 pub mod nnls;
+pub mod phases;
 pub mod reconstruct;
 pub mod render;
 pub mod samples;

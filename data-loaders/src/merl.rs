@@ -68,8 +68,29 @@ impl MerlTable {
     /// Reads a MERL file. The size is checked before anything is allocated;
     /// see [`MerlTable::from_bytes`] for the other checks.
     pub fn read(path: &Path) -> Result<Self, LoadError> {
-        let bytes = planar::read_exact_size_as(path, Self::FILE_BYTES, "a MERL table (.binary)")?;
-        Self::from_bytes(&bytes, path)
+        let mut header = [0u8; HEADER_BYTES];
+        let raw = planar::read_header_f64s(
+            path,
+            Self::FILE_BYTES,
+            &mut header,
+            "a MERL table (.binary)",
+        )?;
+        Self::check_header(&header, path)?;
+        Self::check_finite(&raw, path)?;
+        Ok(MerlTable { raw })
+    }
+
+    /// [`LoadError::BadHeader`] unless the header is 90 90 180.
+    fn check_header(header: &[u8], path: &Path) -> Result<(), LoadError> {
+        let mut dims = [0i32; 3];
+        LittleEndian::read_i32_into(&header[..HEADER_BYTES], &mut dims);
+        if dims != Self::DIMS {
+            return Err(LoadError::BadHeader {
+                path: path.to_path_buf(),
+                dims,
+            });
+        }
+        Ok(())
     }
 
     /// Decodes the bytes of a MERL file; `path` is only used in messages.
@@ -81,14 +102,7 @@ impl MerlTable {
         if bytes.len() as u64 != Self::FILE_BYTES {
             return Err(Self::wrong_size(path, bytes.len() as u64));
         }
-        let mut dims = [0i32; 3];
-        LittleEndian::read_i32_into(&bytes[..HEADER_BYTES], &mut dims);
-        if dims != Self::DIMS {
-            return Err(LoadError::BadHeader {
-                path: path.to_path_buf(),
-                dims,
-            });
-        }
+        Self::check_header(bytes, path)?;
         let mut raw = vec![0.0; 3 * Self::CELLS];
         LittleEndian::read_f64_into(&bytes[HEADER_BYTES..], &mut raw);
         Self::check_finite(&raw, path)?;

@@ -10,7 +10,8 @@ use crate::error::LoadError;
 /// [`LoadError::NonFinite`] for the first NaN or infinite value of `raw`,
 /// laid out as channel planes of `cells` values each.
 pub(crate) fn check_finite(raw: &[f64], cells: usize, path: &Path) -> Result<(), LoadError> {
-    match raw.iter().position(|v| !v.is_finite()) {
+    use rayon::prelude::*;
+    match raw.par_iter().position_first(|v| !v.is_finite()) {
         None => Ok(()),
         Some(i) => Err(LoadError::NonFinite {
             path: path.to_path_buf(),
@@ -50,6 +51,81 @@ pub(crate) fn read_exact_size_as(
 ) -> Result<Vec<u8>, LoadError> {
     use std::io::Read;
     let io = |e| LoadError::io(path, e);
+    let file = open_sized(path, expected, what)?;
+    let mut bytes = Vec::with_capacity(expected as usize + 1);
+    file.take(expected + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 != expected {
+        return Err(LoadError::WrongSize {
+            path: path.to_path_buf(),
+            expected,
+            actual: bytes.len() as u64,
+        });
+    }
+    Ok(bytes)
+}
+
+/// [`read_exact_size_as`] for a file of a `header` and little-endian f64
+/// values: the values are read straight into their own buffer (no copy of
+/// the whole file as bytes first, no second 35 MB allocation for a MERL
+/// table). The same checks and errors.
+pub(crate) fn read_header_f64s(
+    path: &Path,
+    expected: u64,
+    header: &mut [u8],
+    what: &'static str,
+) -> Result<Vec<f64>, LoadError> {
+    let mut file = open_sized(path, expected, what)?;
+    let count = (expected as usize).saturating_sub(header.len()) / 8;
+    let mut values = vec![0.0f64; count];
+    // SAFETY: every bit pattern is a valid f64, and u8 needs no alignment.
+    let body =
+        unsafe { std::slice::from_raw_parts_mut(values.as_mut_ptr().cast::<u8>(), count * 8) };
+    let mut got = 0u64;
+    for buf in [header, body] {
+        let n = fill(&mut file, buf).map_err(|e| LoadError::io(path, e))?;
+        got += n as u64;
+        if n < buf.len() {
+            break;
+        }
+    }
+    // One byte more tells a file that grew meanwhile.
+    if got == expected {
+        got += fill(&mut file, &mut [0u8; 1]).map_err(|e| LoadError::io(path, e))? as u64;
+    }
+    if got != expected {
+        return Err(LoadError::WrongSize {
+            path: path.to_path_buf(),
+            expected,
+            actual: got,
+        });
+    }
+    // The file is little-endian (a no-op on little-endian machines).
+    for v in &mut values {
+        *v = f64::from_bits(u64::from_le(v.to_bits()));
+    }
+    Ok(values)
+}
+
+/// Reads into `buf` until it is full or the file ends: the bytes read.
+fn fill(file: &mut impl std::io::Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut at = 0;
+    while at < buf.len() {
+        match file.read(&mut buf[at..]) {
+            Ok(0) => break,
+            Ok(n) => at += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(at)
+}
+
+/// The file at `path`, opened after [`crate::sniff::open_regular`]'s checks,
+/// if it is `expected` bytes long; else the error [`read_exact_size_as`]
+/// describes.
+fn open_sized(path: &Path, expected: u64, what: &'static str) -> Result<std::fs::File, LoadError> {
     let (file, actual) = crate::sniff::open_regular(path, what)?;
     if actual != expected {
         let found = crate::sniff::describe(path);
@@ -67,16 +143,5 @@ pub(crate) fn read_exact_size_as(
             found,
         });
     }
-    let mut bytes = Vec::with_capacity(expected as usize + 1);
-    file.take(expected + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    if bytes.len() as u64 != expected {
-        return Err(LoadError::WrongSize {
-            path: path.to_path_buf(),
-            expected,
-            actual: bytes.len() as u64,
-        });
-    }
-    Ok(bytes)
+    Ok(file)
 }

@@ -348,6 +348,7 @@ pub fn run(args: FitArgs) -> CliResult {
     if args.jobs.is_some() {
         return Err(CliError::Message("--jobs: only for a folder input".into()));
     }
+    crate::phases::mark("start");
     modelfile::Form::of(&args.output)?;
     let config = args.config.config(args.model);
     config.validate()?;
@@ -355,6 +356,7 @@ pub fn run(args: FitArgs) -> CliResult {
     // report, not an output that happens to exist already.
     npf_data_loaders::sniff::open_regular(&args.input, "a measured table")?;
     check_outputs(&[&args.output], &[&args.input], args.force)?;
+    crate::phases::mark("checks");
     let fitted = fit_table(&args.input, &args.output, &args, &config, !args.quiet)?;
     if !args.quiet {
         print_summary(&fitted);
@@ -374,6 +376,7 @@ pub(super) fn fit_table(
     verbose: bool,
 ) -> Result<Fitted, CliError> {
     let (table, samples) = super::read_measured(input, args.format)?;
+    crate::phases::mark("read + samples");
     let fitted = match (args.target, args.budget) {
         (Some(target), _) => {
             // A rendering-PSNR target renders the input table once as the reference.
@@ -422,6 +425,7 @@ pub(super) fn fit_table(
                 }
                 let (_, again) = super::read_measured(input, args.format)
                     .map_err(|e| changed(format!("reading it again: {e}")))?;
+                crate::phases::mark("re-read + samples");
                 Ok(again)
             };
             let (bar, mut observer) = progress(config, verbose);
@@ -455,6 +459,7 @@ fn write_fitted(
         },
         args.force,
     )?;
+    crate::phases::mark("write");
     Ok(fitted)
 }
 
