@@ -143,6 +143,9 @@ pub struct FitConfig {
     /// Pooled compressive weights below this half angle (degrees;
     /// [`SampleOptions::pool_scale_below_deg`]); `None`: off.
     pub pool_scale_below: Option<f64>,
+    /// The pooling angle for untrusted tables ([`FloorRule::untrusted`]);
+    /// the larger of the two applies; `None`: off.
+    pub pool_scale_below_untrusted: Option<f64>,
     /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to
     /// the model ([`crate::model::Compensation`]); for energy-conservation
     /// studies, not appearance fits (docs/fitting.md: it adds energy
@@ -182,6 +185,7 @@ impl Default for FitConfig {
             taper_from: s.taper_from_deg,
             masking: o.masking,
             pool_scale_below: s.pool_scale_below_deg,
+            pool_scale_below_untrusted: Some(POOL_SCALE_BELOW_UNTRUSTED),
             compensate: false,
         }
     }
@@ -200,6 +204,15 @@ pub const EPSILON_MEDIAN: f64 = 0.0;
 /// `epsilon`). BENCHMARKS.md,
 /// issue 16, "data-decided floor and grazing trust".
 pub const EPSILON_MEDIAN_UNTRUSTED: f64 = 0.6;
+
+/// The default [`FitConfig::pool_scale_below_untrusted`]: every row
+/// pooled. Untrusted tables' values vary along phi_d where an isotropic
+/// model cannot follow them; own-value weights then fit each row near
+/// its harmonic mean, far below what the renderer sums. On the 10 RGL
+/// tables full-row pooling renders cc_nothern_aurora at 32.3 dB against
+/// 28.9 and chm_mint at 28.0 against 27.1, and no table more than 0.06 dB
+/// lower (BENCHMARKS.md, issue 16, "chm_mint and cc_nothern_aurora").
+pub const POOL_SCALE_BELOW_UNTRUSTED: f64 = 90.0;
 
 /// The fraction of a channel's samples (inside the cut-off) that must be
 /// exactly 0 for the data to count as clamped: 1 in 2,000, above isolated
@@ -541,18 +554,30 @@ impl FitConfig {
     /// [`FitConfig::sample_options`] with the floor and the grazing
     /// cut-off resolved for `samples`.
     pub fn sample_options_for(&self, samples: &MeasuredSamples) -> SampleOptions {
-        self.sample_options_with(&self.floor_rule(samples))
+        self.sample_options_with(&self.floor_rule(samples), samples.isotropic)
     }
 
     /// [`FitConfig::sample_options`] with the floor and the grazing
     /// cut-off of a rule already read from the data.
-    pub fn sample_options_with(&self, floor: &FloorRule) -> SampleOptions {
+    pub fn sample_options_with(&self, floor: &FloorRule, isotropic: bool) -> SampleOptions {
         let grazing = self.grazing_rule(floor);
         SampleOptions {
             epsilon: floor.epsilon,
             max_theta_deg: grazing.max_theta_deg,
             taper_from_deg: grazing.taper_from_deg,
+            pool_scale_below_deg: self.pool_scale_below_for(floor, isotropic),
             ..self.sample_options()
+        }
+    }
+
+    /// The pooling angle a fit uses: `pool_scale_below`, or
+    /// `pool_scale_below_untrusted` if larger and the data are untrusted
+    /// and isotropic (a (theta_h, theta_d) row of anisotropic data also
+    /// spans phi_h, which the model does follow).
+    pub fn pool_scale_below_for(&self, floor: &FloorRule, isotropic: bool) -> Option<f64> {
+        match (self.pool_scale_below, self.pool_scale_below_untrusted) {
+            (p, Some(u)) if floor.untrusted && isotropic => Some(p.map_or(u, |p| p.max(u))),
+            (p, _) => p,
         }
     }
 
@@ -644,12 +669,20 @@ impl FitConfig {
                 });
             }
         }
-        if let Some(t) = self.pool_scale_below.filter(|t| !(*t > 0.0 && *t <= 90.0)) {
-            return Err(FitError::Range {
-                name: "pool_scale_below",
-                range: "in (0, 90] degrees".into(),
-                value: t,
-            });
+        for (name, p) in [
+            ("pool_scale_below", self.pool_scale_below),
+            (
+                "pool_scale_below_untrusted",
+                self.pool_scale_below_untrusted,
+            ),
+        ] {
+            if let Some(t) = p.filter(|t| !(*t > 0.0 && *t <= 90.0)) {
+                return Err(FitError::Range {
+                    name,
+                    range: "in (0, 90] degrees".into(),
+                    value: t,
+                });
+            }
         }
         if let Some(t) = self.taper_from.filter(|t| !(0.0..90.0).contains(t)) {
             return Err(FitError::Range {
@@ -776,7 +809,8 @@ fn run_kind(
     crate::phases::mark("check values");
     let layout = config.layout_for(&samples);
     let floor = config.floor_rule(&samples);
-    let so = config.sample_options_with(&floor);
+    let isotropic = samples.isotropic;
+    let so = config.sample_options_with(&floor, isotropic);
     // The rule's parallel passes left their freed buffers in the worker
     // threads' heaps, which the set build would not reuse (up to 13 MB
     // more peak memory measured).
@@ -994,6 +1028,15 @@ fn fit_measured<'a>(
                 // What the data-dependent floor read and chose.
                 if config.weighting == Weighting::Compressive {
                     v["floor"] = serde_json::to_value(floor).unwrap_or_default();
+                    // The pooling this table got (the untrusted rule may raise it).
+                    match config.pool_scale_below_for(&floor, samples.isotropic) {
+                        Some(p) => v["pool_scale_below_deg"] = p.into(),
+                        None => {
+                            if let Some(m) = v.as_object_mut() {
+                                m.remove("pool_scale_below_deg");
+                            }
+                        }
+                    }
                 }
                 if config.grazing_trust > 0.0 {
                     let g = config.grazing_rule(&floor);

@@ -193,6 +193,14 @@ fn grazing_trust_follows_the_reciprocity_of_the_grazing_cells() {
         ..floor
     };
     assert!(!on.grazing_rule(&clamped).trusted);
+    // Untrusted isotropic data get every row's weights pooled; trusted
+    // data and anisotropic data keep the peak-only pooling.
+    let pool =
+        |f: &npf::fit::FloorRule, iso: bool| on.sample_options_with(f, iso).pool_scale_below_deg;
+    assert_eq!(pool(&clamped, true), on.pool_scale_below_untrusted);
+    assert_eq!(pool(&clamped, false), on.pool_scale_below);
+    assert_eq!(pool(&floor, true), on.pool_scale_below);
+    assert!(on.pool_scale_below_untrusted > on.pool_scale_below);
 
     let start = init_model(&truth);
     let fit = |data: &npf_data_loaders::MeasuredSamples, c: &FitConfig| {

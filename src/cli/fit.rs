@@ -54,6 +54,10 @@ pub struct FitFlags {
     /// value over phi_d of each (theta_h, theta_d) row (0: off).
     #[arg(long, default_value_t = defaults().pool_scale_below.unwrap_or(0.0))]
     pub pool_scale_below: f64,
+    /// The same for untrusted tables (see --epsilon-median-untrusted); the
+    /// larger of the two applies (0: off; docs/fitting.md).
+    #[arg(long, default_value_t = defaults().pool_scale_below_untrusted.unwrap_or(0.0))]
+    pub pool_scale_below_untrusted: f64,
     /// Grazing cut-off: leave out samples with theta_i or theta_o above this (degrees).
     #[arg(long, default_value_t = defaults().max_theta)]
     pub max_theta: f64,
@@ -154,6 +158,7 @@ impl FitFlags {
             taper_from: self.taper_from,
             masking: self.masking,
             pool_scale_below: Some(self.pool_scale_below).filter(|&d| d > 0.0),
+            pool_scale_below_untrusted: Some(self.pool_scale_below_untrusted).filter(|&d| d > 0.0),
             compensate: self.compensate,
         }
     }
