@@ -47,6 +47,14 @@ pub const PHI_CELLS: usize = 8;
 /// (2% rather than 10%: near-Lambertian fits sample better, 2x lower
 /// variance on white-fabric, see docs/sampling.md.)
 pub const COVERAGE_SHARE: f64 = 0.02;
+/// Candidate shares of the cosine draw blended into a view row's
+/// albedo-proportional selection (see `NpfBxdf::defensive_blend`).
+const DEFENSIVE_SHARES: [f64; 10] = [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 0.9, 0.95, 1.0];
+/// Relative gain in the estimated white-furnace variance a blend must
+/// reach over the albedo selection to replace it.
+const DEFENSIVE_MARGIN: f64 = 0.05;
+/// Strata per axis of each component's quadrature draws in that search.
+const DEFENSIVE_GRID: usize = 48;
 /// Rec. 709 luminance, which weighs the three channels into one selection.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -310,9 +318,139 @@ impl NpfBxdf {
             if sum > 0.0 {
                 p.iter_mut().for_each(|v| *v /= sum);
             }
+            if present[0] && sum > 0.0 {
+                p = self.defensive_blend(k, &p, &present);
+            }
             table.extend(p);
         }
         table
+    }
+
+    /// The albedo-proportional selection `p` at view node k blended with
+    /// the cosine draw, `(1 - a) p + a e_diffuse`, at the share `a` of
+    /// DEFENSIVE_SHARES whose white-furnace variance
+    /// `integral (lum(f) cos)^2 / pdf - albedo^2` is least by quadrature. Albedo
+    /// shares are not variance-optimal when a lobe's own draw is poor (a
+    /// broad lobe whose f is shaped by G, F and 1/(cos i cos o) rather
+    /// than by D): its weights then blow up where the cosine draw would
+    /// keep them bounded. A blend must beat the albedo selection by
+    /// DEFENSIVE_MARGIN, so quadrature noise leaves good rows alone.
+    fn defensive_blend(&self, k: usize, p: &[f64], present: &[bool]) -> Vec<f64> {
+        let nc = self.components();
+        let theta = view_angle(k);
+        let wo = [theta.sin(), 0.0, theta.cos()];
+        // Quadrature points: DEFENSIVE_GRID^2 stratified draws from each
+        // present component (the cosine draw and each lobe's node-k
+        // table), weighted by the equal-share mixture q of those draws.
+        let drawn: Vec<usize> = (0..nc).filter(|&c| present[c]).collect();
+        let n = DEFENSIVE_GRID;
+        let mut points: Vec<(f64, Vec<f64>)> = Vec::with_capacity(drawn.len() * n * n);
+        let mut albedo = 0.0;
+        let mut dens = vec![0.0; nc];
+        for &c in &drawn {
+            for a in 0..n {
+                for b in 0..n {
+                    let u = [(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64];
+                    let Some(wi) = self.component_draw(k, wo, c, u) else {
+                        continue;
+                    };
+                    self.component_densities(k, wo, wi, &mut dens);
+                    let q: f64 = drawn.iter().map(|&d| dens[d]).sum::<f64>() / drawn.len() as f64;
+                    let f = luminance(self.eval(wo, wi)).max(0.0) * wi[2];
+                    if q > 0.0 && f > 0.0 {
+                        albedo += f / q;
+                        points.push((f * f / q, dens.clone()));
+                    }
+                }
+            }
+        }
+        // The variance, not the second moment: that is mostly albedo^2
+        // on a near-Lambertian row, which no selection changes.
+        let count = (drawn.len() * n * n) as f64;
+        let albedo = albedo / count;
+        let variance = |s: &[f64]| -> f64 {
+            let moment: f64 = points
+                .iter()
+                .map(|(w, d)| {
+                    let pdf: f64 = s.iter().zip(d).map(|(s, d)| s * d).sum();
+                    if pdf > 0.0 {
+                        w / pdf
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .sum();
+            moment / count - albedo * albedo
+        };
+        // Each present lobe keeps SELECTION_FLOOR (renormalised), as in
+        // the albedo rows.
+        let blend = |a: f64| -> Vec<f64> {
+            let mut s: Vec<f64> = (0..nc)
+                .map(|c| match c {
+                    0 => (1.0 - a) * p[0] + a,
+                    _ if present[c] => ((1.0 - a) * p[c]).max(SELECTION_FLOOR),
+                    _ => 0.0,
+                })
+                .collect();
+            let sum: f64 = s.iter().sum();
+            s.iter_mut().for_each(|v| *v /= sum);
+            s
+        };
+        let base = variance(p);
+        let mut best = (base * (1.0 - DEFENSIVE_MARGIN), p.to_vec());
+        for &a in &DEFENSIVE_SHARES {
+            let s = blend(a);
+            let m = variance(&s);
+            if m < best.0 {
+                best = (m, s);
+            }
+        }
+        best.1
+    }
+
+    /// Component c's draw (0 the cosine draw, 1 + m lobe m's node-k table)
+    /// from u, None when it leaves the upper hemisphere.
+    fn component_draw(&self, k: usize, wo: Vec3, c: usize, u: [f64; 2]) -> Option<Vec3> {
+        let wi = if c == 0 {
+            cosine_hemisphere(u)
+        } else {
+            let tables = self.lobes[c - 1].as_ref()?;
+            let (sign, v) = if u[1] < 0.5 {
+                (1.0, 2.0 * u[1])
+            } else {
+                (-1.0, (2.0 * u[1] - 1.0).min(1.0))
+            };
+            let (_, t, j, dv) = tables[k].sample_cells([u[0], v]);
+            let r = reflection::<f64>(wo, t, sign, azimuth_centre(j), dv);
+            if !(r.wo_h > 0.0) {
+                return None;
+            }
+            r.wi
+        };
+        (wi[2] > 0.0).then_some(wi)
+    }
+
+    /// Each component's own density (per solid angle, before selection)
+    /// of wi at view node k: the cosine draw's first, then each lobe's.
+    fn component_densities(&self, k: usize, wo: Vec3, wi: Vec3, out: &mut [f64]) {
+        out.iter_mut().for_each(|d| *d = 0.0);
+        out[0] = wi[2] / PI;
+        if self.densities.is_empty() {
+            return;
+        }
+        let Some(jac) = lobe_jacobian(wo, wi) else {
+            return;
+        };
+        let Some((h, t)) = half_vector(wi, wo) else {
+            return;
+        };
+        let nl = self.model.lobes.len();
+        let cells = self.edges.len() - 1;
+        let (ex, ey) = azimuth_frame(wo);
+        let base = ((k * cells + self.t_cell(t)) * PHI_CELLS + azimuth_cell(h, ex, ey)) * nl;
+        for m in 0..nl {
+            out[1 + m] = self.densities[base + m] * jac;
+        }
     }
 
     /// Where a view with cos(theta_o) = cos_o falls in the selection table:
