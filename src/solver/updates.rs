@@ -265,11 +265,13 @@ pub(crate) fn solve_diffuse_and_scales(
             let mut acc = [0.0; SIZE];
             for j in range {
                 let c = &cache[j];
+                let p: [f64; LOBES] =
+                    std::array::from_fn(|m| c.lobe_product(m, set.inv_cc[j], masking));
                 for ch in 0..3 {
                     let mut b = [0.0; MAXK];
                     b[0] = basis_at(basis, j, ch);
                     for m in 0..LOBES {
-                        b[m + 1] = c.fv[ch] * c.lobe_product(m, set.inv_cc[j], masking);
+                        b[m + 1] = c.fv[ch] * p[m];
                     }
                     let w = set.w[j][ch];
                     let y = set.y[j][ch];
