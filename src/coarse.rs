@@ -146,6 +146,36 @@ pub fn fit(
     })
 }
 
+/// With `NPF_TIMING`, a level's wall time per kind of stage, summed over
+/// its sweeps (a coarse sweep is short, so its fixed costs show here).
+fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
+    use crate::solver::Stage;
+    if !crate::phases::enabled() {
+        return;
+    }
+    let kinds: [(&str, fn(&Stage) -> bool); 6] = [
+        ("D", |s| matches!(s, Stage::D(_))),
+        ("F", |s| matches!(s, Stage::F)),
+        ("G", |s| matches!(s, Stage::G(_))),
+        ("d, s", |s| matches!(s, Stage::DiffuseAndScales)),
+        ("gauge", |s| matches!(s, Stage::Gauge)),
+        ("extrapolation", |s| matches!(s, Stage::Extrapolate)),
+    ];
+    let stages = || history.iter().flat_map(|r| &r.stages);
+    let split: Vec<String> = kinds
+        .iter()
+        .map(|(name, is)| {
+            let t: f64 = stages().filter(|s| is(&s.stage)).map(|s| s.seconds).sum();
+            format!("{name} {:.0} ms", t * 1e3)
+        })
+        .collect();
+    eprintln!(
+        "npf timing: coarse 1/{factor} stages over {} sweeps: {}",
+        history.len(),
+        split.join(", ")
+    );
+}
+
 /// The decimated levels of [`fit`], in turn: the factors they end at.
 fn levels_fit(
     samples: &MeasuredSamples,
@@ -170,6 +200,7 @@ fn levels_fit(
         }
         let small = FitSet::build(&kept, layout, so)?;
         let r = Executor::new(&small, level_opts).start_from(start).run()?;
+        print_stages(factor, &r.history);
         done.push(CoarseLevel {
             factor,
             samples: small.len(),

@@ -67,6 +67,20 @@ pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
     }
 }
 
+/// One entry's terms of the quartic's coefficients c1..c4 (see the module
+/// notes), added to `acc`; a function, not a closure, so it is inlined
+/// into the tight per-point loop.
+#[inline(always)]
+fn cubic_terms(x: &GWork, u: crate::grid::Weight, v: crate::grid::Weight, acc: &mut [f64; 4]) {
+    let (u, v) = (f64::from(u), f64::from(v));
+    let p1 = x.gi * v + x.go * u;
+    let p2 = u * v;
+    acc[0] += 2.0 * x.sr * p1;
+    acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
+    acc[2] += 2.0 * x.sa * p1 * p2;
+    acc[3] += x.sa * p2 * p2;
+}
+
 /// Per-sample state of one lobe's G pass, packed so the per-point loops
 /// touch 32 bytes per sample: G(theta_i), G(theta_o), S_r, S_a.
 #[derive(Clone, Copy, Default)]
@@ -151,16 +165,6 @@ pub(crate) fn update_g(
         }
         let range = inc.entries(k);
         let wv = &work[..];
-        let term = |e: usize, acc: &mut [f64; 4]| {
-            let x = &wv[inc.sample[e] as usize];
-            let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
-            let p1 = x.gi * v + x.go * u;
-            let p2 = u * v;
-            acc[0] += 2.0 * x.sr * p1;
-            acc[1] += x.sa * p1 * p1 + 2.0 * x.sr * p2;
-            acc[2] += 2.0 * x.sa * p1 * p2;
-            acc[3] += x.sa * p2 * p2;
-        };
         let c = chunked_sum(range.len(), |r| {
             // Even and odd entries in separate sums: each sum is a chain
             // of dependent additions, so one chain would wait on the
@@ -168,14 +172,19 @@ pub(crate) fn update_g(
             // same result for any thread count).
             let (mut even, mut odd) = ([0.0; 4], [0.0; 4]);
             let (lo, hi) = (range.start + r.start, range.start + r.end);
-            let mut e = lo;
-            while e + 1 < hi {
-                term(e, &mut even);
-                term(e + 1, &mut odd);
-                e += 2;
+            // Slices of the chunk (no per-entry bounds checks on the lists).
+            let (sample, u, v) = (&inc.sample[lo..hi], &inc.u[lo..hi], &inc.v[lo..hi]);
+            let pairs = sample
+                .chunks_exact(2)
+                .zip(u.chunks_exact(2))
+                .zip(v.chunks_exact(2));
+            for ((s, u), v) in pairs {
+                cubic_terms(&wv[s[0] as usize], u[0], v[0], &mut even);
+                cubic_terms(&wv[s[1] as usize], u[1], v[1], &mut odd);
             }
-            if e < hi {
-                term(e, &mut even);
+            if sample.len() % 2 == 1 {
+                let e = sample.len() - 1;
+                cubic_terms(&wv[sample[e] as usize], u[e], v[e], &mut even);
             }
             std::array::from_fn(|i| even[i] + odd[i])
         });
@@ -197,10 +206,11 @@ pub(crate) fn update_g(
         // distinct samples and can be applied in parallel.
         let shared = Disjoint::new(&mut work[..]);
         let apply = |lo: usize, hi: usize| {
-            for e in lo..hi {
+            let (sample, u, v) = (&inc.sample[lo..hi], &inc.u[lo..hi], &inc.v[lo..hi]);
+            for ((&j, &u), &v) in sample.iter().zip(u).zip(v) {
                 // SAFETY: distinct samples within one point's list (see GIncidence::build).
-                let x = unsafe { shared.get(inc.sample[e] as usize) };
-                let (u, v) = (f64::from(inc.u[e]), f64::from(inc.v[e]));
+                let x = unsafe { shared.get(j as usize) };
+                let (u, v) = (f64::from(u), f64::from(v));
                 let p1 = x.gi * v + x.go * u;
                 let p2 = u * v;
                 x.sr += x.sa * (p1 * t + p2 * t * t);

@@ -123,10 +123,16 @@ pub(crate) fn set_residual(
     j: usize,
     c: &mut Cache,
 ) {
+    // Each lobe's product once, not once per channel (the same values).
+    let lobes = f.lobes();
+    let mut p = [0.0; MAX_LOBES];
+    for (m, p) in p.iter_mut().enumerate().take(lobes) {
+        *p = c.lobe_product(m, set.inv_cc[j], f.masking);
+    }
     for ch in 0..3 {
         let mut v = f.diffuse[ch] * basis_at(basis, j, ch);
-        for m in 0..f.lobes() {
-            v += f.s[m][ch] * c.fv[ch] * c.lobe_product(m, set.inv_cc[j], f.masking);
+        for (s, p) in f.s.iter().zip(&p) {
+            v += s[ch] * c.fv[ch] * p;
         }
         c.r[ch] = v - set.y[j][ch];
     }

@@ -52,9 +52,10 @@ pub(crate) fn linear_pass(
             .par_iter()
             .map(|&k| {
                 let (mut num, mut den) = (0.0, 0.0);
-                for e in inc.entries(k) {
-                    let (sr, sa) = scratch.s[inc.sample[e] as usize];
-                    let om = f64::from(inc.weight[e]);
+                let r = inc.entries(k);
+                for (&j, &om) in inc.sample[r.clone()].iter().zip(&inc.weight[r]) {
+                    let (sr, sa) = scratch.s[j as usize];
+                    let om = f64::from(om);
                     num += om * sr;
                     den += om * om * sa;
                 }
@@ -76,9 +77,10 @@ pub(crate) fn linear_pass(
                 continue;
             }
             table[k] += dx;
-            for e in inc.entries(k) {
-                let j = inc.sample[e] as usize;
-                let om = f64::from(inc.weight[e]);
+            let r = inc.entries(k);
+            for (&j, &om) in inc.sample[r.clone()].iter().zip(&inc.weight[r]) {
+                let j = j as usize;
+                let om = f64::from(om);
                 let sj = &mut scratch.s[j];
                 sj.0 += sj.1 * om * dx;
                 scratch.delta[j] += om * dx;
@@ -233,6 +235,10 @@ pub(crate) fn update_diffuse_and_scales(
     recompute_residuals(set, st);
 }
 
+/// Basis functions of the (d, s) solve at most, and its sums' count.
+const MAXK: usize = MAX_LOBES + 1;
+const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
+
 /// [`update_diffuse_and_scales`] without the residuals' recomputation: the
 /// caller must recompute them (e.g. fused with the gauge's rescaling).
 pub(crate) fn solve_diffuse_and_scales(
@@ -243,35 +249,50 @@ pub(crate) fn solve_diffuse_and_scales(
     let lobes = st.factors.lobes();
     let k = lobes + 1;
     // Gram matrix and right-hand side per channel: basis b_0 = the diffuse factor, b_m = F D G G/(cc).
-    const MAXK: usize = MAX_LOBES + 1;
-    const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
     let cache = &st.cache;
     let basis = &st.basis;
     let masking = st.factors.masking;
-    let sums: [f64; SIZE] = chunked_sum(set.len(), |range| {
-        let mut acc = [0.0; SIZE];
-        for j in range {
-            let c = &cache[j];
-            for ch in 0..3 {
-                let mut b = [0.0; MAXK];
-                b[0] = basis_at(basis, j, ch);
-                for m in 0..lobes {
-                    b[m + 1] = c.fv[ch] * c.lobe_product(m, set.inv_cc[j], masking);
-                }
-                let w = set.w[j][ch];
-                let y = set.y[j][ch];
-                let base = ch * (MAXK * MAXK + MAXK);
-                for a in 0..k {
-                    let wb = w * b[a];
-                    for bb in a..k {
-                        acc[base + a * MAXK + bb] += wb * b[bb];
+    // The per-sample loop for a lobe count known at compile time (unrolled
+    // loops over the Gram matrix; the same arithmetic in the same order).
+    fn sums_for<const LOBES: usize>(
+        set: &FitSet,
+        cache: &[Cache],
+        basis: &Option<Vec<[f64; 3]>>,
+        masking: crate::model::Masking,
+    ) -> [f64; SIZE] {
+        let k = LOBES + 1;
+        chunked_sum(set.len(), |range| {
+            let mut acc = [0.0; SIZE];
+            for j in range {
+                let c = &cache[j];
+                let p: [f64; LOBES] =
+                    std::array::from_fn(|m| c.lobe_product(m, set.inv_cc[j], masking));
+                for ch in 0..3 {
+                    let mut b = [0.0; MAXK];
+                    b[0] = basis_at(basis, j, ch);
+                    for m in 0..LOBES {
+                        b[m + 1] = c.fv[ch] * p[m];
                     }
-                    acc[base + MAXK * MAXK + a] += wb * y;
+                    let w = set.w[j][ch];
+                    let y = set.y[j][ch];
+                    let base = ch * (MAXK * MAXK + MAXK);
+                    for a in 0..k {
+                        let wb = w * b[a];
+                        for bb in a..k {
+                            acc[base + a * MAXK + bb] += wb * b[bb];
+                        }
+                        acc[base + MAXK * MAXK + a] += wb * y;
+                    }
                 }
             }
-        }
-        acc
-    });
+            acc
+        })
+    }
+    let sums: [f64; SIZE] = match lobes {
+        1 => sums_for::<1>(set, cache, basis, masking),
+        2 => sums_for::<2>(set, cache, basis, masking),
+        _ => sums_for::<MAX_LOBES>(set, cache, basis, masking),
+    };
     for ch in 0..3 {
         let base = ch * (MAXK * MAXK + MAXK);
         // Basis functions in the system: 0 (diffuse) and each unmasked lobe.
