@@ -209,7 +209,7 @@ pub(crate) fn chunked_sum<const K: usize>(
     if chunks <= 1 {
         // One chunk: the same sum without a parallel dispatch (a G pass
         // makes 540 such sums a sweep; on a coarse level most are this small).
-        return sum_in_order(vec![f(0..n)]);
+        return sum_in_order([f(0..n)]);
     }
     let partial: Vec<[f64; K]> = (0..chunks)
         .into_par_iter()
@@ -237,7 +237,7 @@ pub(crate) fn chunked_sum_mut<T: Send, const K: usize>(
 
 /// The chunks' partial sums added in chunk order (the fixed order that
 /// makes the reductions independent of the thread count).
-fn sum_in_order<const K: usize>(partial: Vec<[f64; K]>) -> [f64; K] {
+fn sum_in_order<const K: usize>(partial: impl IntoIterator<Item = [f64; K]>) -> [f64; K] {
     let mut total = [0.0; K];
     for p in partial {
         for k in 0..K {
