@@ -266,11 +266,22 @@ impl NpfBxdf {
         let mut k = 0;
         while k < n {
             // The last group repeats its final draw in its unused slots.
-            let at = [0, 1, 2, 3].map(|j| (k + j).min(n - 1));
+            // Written out: `[..].map(..)` compiled to out-of-line calls here.
+            let at = [
+                k,
+                (k + 1).min(n - 1),
+                (k + 2).min(n - 1),
+                (k + 3).min(n - 1),
+            ];
             let drawn = self.draw4::<V>(
-                at.map(|j| wo.get(j)),
-                at.map(|j| u[0][j]),
-                at.map(|j| [u[1][j], u[2][j]]),
+                [wo.get(at[0]), wo.get(at[1]), wo.get(at[2]), wo.get(at[3])],
+                [u[0][at[0]], u[0][at[1]], u[0][at[2]], u[0][at[3]]],
+                [
+                    [u[1][at[0]], u[2][at[0]]],
+                    [u[1][at[1]], u[2][at[1]]],
+                    [u[1][at[2]], u[2][at[2]]],
+                    [u[1][at[3]], u[2][at[3]]],
+                ],
             );
             for (j, d) in drawn.into_iter().enumerate().take(n - k) {
                 // The value comes later; pdf and wi as drawn for now.
