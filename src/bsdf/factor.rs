@@ -631,7 +631,7 @@ impl NpfBxdf {
 
     /// `pdf` plus every lobe's part of the mixture density for a half
     /// vector in cell (i, j) (t cell, azimuth cell), added lobe by lobe.
-    #[inline]
+    #[inline(always)]
     fn add_lobe_densities(&self, mut pdf: f64, sel: &Sel, (i, j): (usize, usize), jac: f64) -> f64 {
         let nl = self.model.lobes.len();
         let cells = self.edges.len() - 1;
