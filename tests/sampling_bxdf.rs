@@ -696,6 +696,46 @@ fn the_fused_pdf_matches_the_per_lobe_tables() {
 }
 
 #[test]
+fn models_with_more_lobes_than_the_selection_row_sample_their_pdf() {
+    // A draw computes the selection shares of the diffuse term and four
+    // lobes once; lobes past those are interpolated where used. Six lobes
+    // exercise both: sample's pdf is pdf's, which is pdf_reference's.
+    let mut m = known_factor_model(Layout::default(), &[0.02, 0.05, 0.1, 0.2, 0.4, 0.8]);
+    m.diffuse = [0.1, 0.2, 0.3];
+    let b = NpfBxdf::new(m).unwrap();
+    let mut rng = Pcg64::seed_from_u64(31);
+    let mut drawn = [0usize; 7];
+    for k in 0..20_000 {
+        let wo = spherical(rng.gen::<f64>() * 1.55, rng.gen::<f64>() * 2.0 * PI);
+        let s = b.sample(wo, rng.gen(), [rng.gen(), rng.gen()]);
+        let p: f64 = b.selection_probabilities(wo).iter().sum();
+        assert!((p - 1.0).abs() < 1e-12, "selection sums to {p}");
+        if s.is_lost() {
+            continue;
+        }
+        drawn[match s.component {
+            Component::Diffuse => 0,
+            Component::Lobe(m) => 1 + m,
+        }] += 1;
+        let (pdf, reference) = (b.pdf(wo, s.wi), b.pdf_reference(wo, s.wi));
+        assert!(
+            pdf > 0.0 && (s.pdf - pdf).abs() <= 1e-12 * pdf,
+            "#{k}: sample's pdf {} vs pdf {pdf}",
+            s.pdf
+        );
+        assert!(
+            (pdf - reference).abs() <= 1e-12 * reference,
+            "#{k}: pdf {pdf} vs reference {reference}"
+        );
+    }
+    // Every component is drawn (each has at least a 1% share).
+    assert!(
+        drawn.iter().all(|&n| n > 50),
+        "draws per component {drawn:?}"
+    );
+}
+
+#[test]
 fn chi_square_detects_a_wrong_pdf() {
     // The same test must reject a sampler whose pdf is off: compare the
     // glossy model's draws with the three-lobe model's pdf.

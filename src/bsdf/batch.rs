@@ -221,21 +221,21 @@ impl NpfBxdf {
         } = out;
         let [f0, f1, f2] = f;
         flat.eval_slices(wo.slices(), [&wi[0], &wi[1], &wi[2]], [f0, f1, f2]);
+        // Every slice cut to n once, so the loop has no bounds checks.
+        let [f0, f1, f2] = f.each_mut().map(|v| &mut v[..n]);
+        let [w0, w1, w2] = weight.each_mut().map(|v| &mut v[..n]);
+        let [x, y, z] = wi.each_ref().map(|v| &v[..n]);
+        let (pdf, component) = (&mut pdf[..n], &component[..n]);
         for j in 0..n {
-            if !(pdf[j] > 0.0) {
-                // Lost: zero value and weight, as the per-call sample
-                // reports it.
-                (0..3).for_each(|c| (f[c][j], weight[c][j]) = (0.0, 0.0));
-                continue;
-            }
-            // BsdfSample::new's weight and checks.
-            let w = [wi[0][j], wi[1][j], wi[2][j]];
-            let s = BsdfSample::new(w, [f[0][j], f[1][j], f[2][j]], pdf[j], component[j]);
-            pdf[j] = s.pdf;
-            for c in 0..3 {
-                f[c][j] = s.f[c];
-                weight[c][j] = s.weight[c];
-            }
+            // BsdfSample::new's weight and checks; a lost draw (pdf 0)
+            // gets zero value and weight, as the per-call sample reports it.
+            let s = BsdfSample::new(
+                [x[j], y[j], z[j]],
+                [f0[j], f1[j], f2[j]],
+                pdf[j],
+                component[j],
+            );
+            (pdf[j], [f0[j], f1[j], f2[j]], [w0[j], w1[j], w2[j]]) = (s.pdf, s.f, s.weight);
         }
         Ok(())
     }
@@ -266,11 +266,22 @@ impl NpfBxdf {
         let mut k = 0;
         while k < n {
             // The last group repeats its final draw in its unused slots.
-            let at = [0, 1, 2, 3].map(|j| (k + j).min(n - 1));
+            // Written out: `[..].map(..)` compiled to out-of-line calls here.
+            let at = [
+                k,
+                (k + 1).min(n - 1),
+                (k + 2).min(n - 1),
+                (k + 3).min(n - 1),
+            ];
             let drawn = self.draw4::<V>(
-                at.map(|j| wo.get(j)),
-                at.map(|j| u[0][j]),
-                at.map(|j| [u[1][j], u[2][j]]),
+                [wo.get(at[0]), wo.get(at[1]), wo.get(at[2]), wo.get(at[3])],
+                [u[0][at[0]], u[0][at[1]], u[0][at[2]], u[0][at[3]]],
+                [
+                    [u[1][at[0]], u[2][at[0]]],
+                    [u[1][at[1]], u[2][at[1]]],
+                    [u[1][at[2]], u[2][at[2]]],
+                    [u[1][at[3]], u[2][at[3]]],
+                ],
             );
             for (j, d) in drawn.into_iter().enumerate().take(n - k) {
                 // The value comes later; pdf and wi as drawn for now.

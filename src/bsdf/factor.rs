@@ -73,6 +73,19 @@ pub const GL4_W: [f64; 4] = [
     0.347_854_845_137_453_9,
 ];
 
+/// Components whose interpolated selection probabilities a draw or pdf
+/// computes at once ([`Sel`]): the diffuse term and FLAT_LOBES lobes;
+/// further lobes are interpolated where used.
+const SEL_ROW: usize = 1 + super::flat::FLAT_LOBES;
+
+/// A view's selection-table position (row below, weight of the row above)
+/// with the first SEL_ROW components' probabilities there.
+#[derive(Clone, Copy, Debug)]
+struct Sel {
+    at: (usize, f64),
+    p: [f64; SEL_ROW],
+}
+
 /// A model with its sampling tables (built once by [`NpfBxdf::new`]).
 #[derive(Clone, Debug)]
 pub struct NpfBxdf {
@@ -84,8 +97,12 @@ pub struct NpfBxdf {
     /// [0, pi]); `None` for a lobe without mass (D or s all zero), which is
     /// never chosen.
     lobes: Vec<Option<Vec<PiecewiseConstant2D>>>,
-    /// Selection probabilities, VIEW_NODES rows of (1 + lobes): diffuse first.
+    /// Selection probabilities, VIEW_NODES rows of (1 + lobes): diffuse
+    /// first, each row padded with zeros to `sel_stride` entries.
     selection: Vec<f64>,
+    /// Entries per selection row: max(1 + lobes, SEL_ROW), so a draw reads
+    /// the first SEL_ROW of two rows at fixed offsets.
+    sel_stride: usize,
     /// The 2-D sampler of an anisotropic model (which then has no 1-D tables).
     aniso: Option<super::anisotropic::AnisoSampler>,
     /// Every lobe's cell densities side by side, for `pdf`: entry
@@ -140,6 +157,7 @@ impl NpfBxdf {
                 edges: Vec::new(),
                 lobes,
                 selection: Vec::new(),
+                sel_stride: 0,
                 aniso,
                 densities: Vec::new(),
                 t_guide: Vec::new(),
@@ -160,6 +178,7 @@ impl NpfBxdf {
             edges,
             lobes,
             selection: Vec::new(),
+            sel_stride: 0,
             aniso: None,
             densities: Vec::new(),
             t_guide: Vec::new(),
@@ -168,7 +187,18 @@ impl NpfBxdf {
         bxdf.flat = FlatEval::new(&bxdf.model);
         bxdf.densities = bxdf.fused_densities();
         bxdf.t_guide = t_guide(&bxdf.edges);
-        bxdf.selection = bxdf.selection_table();
+        let nc = bxdf.components();
+        bxdf.sel_stride = nc.max(SEL_ROW);
+        bxdf.selection = bxdf
+            .selection_table()
+            .chunks(nc)
+            .flat_map(|r| {
+                r.iter()
+                    .copied()
+                    .chain(std::iter::repeat(0.0))
+                    .take(nc.max(SEL_ROW))
+            })
+            .collect();
         Ok(bxdf)
     }
 
@@ -198,7 +228,7 @@ impl NpfBxdf {
             .flatten()
             .map(PiecewiseConstant2D::table_bytes)
             .sum::<usize>()
-            + 8 * (self.selection.len() + self.edges.len() + self.densities.len())
+            + 8 * (VIEW_NODES * self.components() + self.edges.len() + self.densities.len())
             + 4 * self.t_guide.len()
             + self.flat.as_ref().map_or(0, FlatEval::table_bytes)
     }
@@ -467,8 +497,35 @@ impl NpfBxdf {
     /// at a view's table position (see `selection_row`).
     #[inline]
     fn selection_at(&self, (k, w): (usize, f64), c: usize) -> f64 {
-        let nc = self.components();
-        (1.0 - w) * self.selection[k * nc + c] + w * self.selection[(k + 1) * nc + c]
+        let st = self.sel_stride;
+        (1.0 - w) * self.selection[k * st + c] + w * self.selection[(k + 1) * st + c]
+    }
+
+    /// The interpolated selection probabilities of the first SEL_ROW
+    /// components at a view's table position, computed once per draw or
+    /// pdf (the choice, the diffuse pdf and every lobe's share read them);
+    /// the values of `selection_at`, bit for bit.
+    #[inline(always)]
+    fn selection_row_at(&self, at: (usize, f64)) -> Sel {
+        let (k, w) = at;
+        let st = self.sel_stride;
+        let lo = &self.selection[k * st..k * st + SEL_ROW];
+        let hi = &self.selection[(k + 1) * st..(k + 1) * st + SEL_ROW];
+        let mut p = [0.0; SEL_ROW];
+        for c in 0..SEL_ROW {
+            p[c] = (1.0 - w) * lo[c] + w * hi[c];
+        }
+        Sel { at, p }
+    }
+
+    /// Probability of component c at the view of `sel`.
+    #[inline(always)]
+    fn sel_p(&self, sel: &Sel, c: usize) -> f64 {
+        if c < SEL_ROW {
+            sel.p[c]
+        } else {
+            self.selection_at(sel.at, c)
+        }
     }
 
     /// Selection probabilities at wo: diffuse first, then one per lobe.
@@ -504,15 +561,12 @@ impl NpfBxdf {
     /// None for the whole when wo or wi is at or below the horizon.
     #[inline]
     #[allow(clippy::type_complexity)]
-    fn pdf_parts(
-        &self,
-        wo: Vec3,
-        wi: Vec3,
-    ) -> Option<(f64, Option<((usize, f64), Vec3, f64, f64)>)> {
+    fn pdf_parts(&self, wo: Vec3, wi: Vec3) -> Option<(f64, Option<(Sel, Vec3, f64, f64)>)> {
         if !(wo[2] > 0.0 && wi[2] > 0.0) {
             return None;
         }
-        self.pdf_parts_at(wo, wi, self.selection_row(wo[2]))
+        let sel = self.selection_row_at(self.selection_row(wo[2]));
+        self.pdf_parts_at(wo, wi, &sel)
     }
 
     /// [`NpfBxdf::pdf_parts`] at a known selection-table position of wo
@@ -523,11 +577,11 @@ impl NpfBxdf {
         &self,
         wo: Vec3,
         wi: Vec3,
-        row: (usize, f64),
-    ) -> Option<(f64, Option<((usize, f64), Vec3, f64, f64)>)> {
-        let pdf = self.diffuse_pdf(wi, row);
+        sel: &Sel,
+    ) -> Option<(f64, Option<(Sel, Vec3, f64, f64)>)> {
+        let pdf = self.diffuse_pdf(wi, sel);
         let lobe = lobe_jacobian(wo, wi)
-            .and_then(|jac| half_vector(wi, wo).map(|(h, t)| (row, h, t, jac)));
+            .and_then(|jac| half_vector(wi, wo).map(|(h, t)| (*sel, h, t, jac)));
         Some((pdf, lobe))
     }
 
@@ -544,29 +598,30 @@ impl NpfBxdf {
         if !(wo[2] > 0.0 && wi[2] > 0.0) {
             return 0.0;
         }
-        self.pdf_at(wo, wi, self.selection_row(wo[2]))
+        let sel = self.selection_row_at(self.selection_row(wo[2]));
+        self.pdf_at(wo, wi, &sel)
     }
 
     /// [`NpfBxdf::pdf`] of an isotropic model at a known selection-table
     /// position of wo (wo and wi above the horizon), as `sample` calls it.
     #[inline]
-    fn pdf_at(&self, wo: Vec3, wi: Vec3, row: (usize, f64)) -> f64 {
-        let Some((pdf, lobe)) = self.pdf_parts_at(wo, wi, row) else {
+    fn pdf_at(&self, wo: Vec3, wi: Vec3, sel: &Sel) -> f64 {
+        let Some((pdf, lobe)) = self.pdf_parts_at(wo, wi, sel) else {
             return 0.0;
         };
-        let Some((row, h, t, jac)) = lobe.filter(|_| !self.densities.is_empty()) else {
+        let Some((sel, h, t, jac)) = lobe.filter(|_| !self.densities.is_empty()) else {
             return pdf;
         };
         let i = self.t_cell(t);
         let (ex, ey) = azimuth_frame(wo);
         let j = azimuth_cell(h, ex, ey);
-        self.add_lobe_densities(pdf, row, (i, j), jac)
+        self.add_lobe_densities(pdf, &sel, (i, j), jac)
     }
 
     /// The diffuse component's part of the mixture density.
     #[inline]
-    fn diffuse_pdf(&self, wi: Vec3, row: (usize, f64)) -> f64 {
-        let p_diffuse = self.selection_at(row, 0);
+    fn diffuse_pdf(&self, wi: Vec3, sel: &Sel) -> f64 {
+        let p_diffuse = sel.p[0];
         if p_diffuse > 0.0 {
             p_diffuse * wi[2] / PI
         } else {
@@ -576,20 +631,22 @@ impl NpfBxdf {
 
     /// `pdf` plus every lobe's part of the mixture density for a half
     /// vector in cell (i, j) (t cell, azimuth cell), added lobe by lobe.
-    #[inline]
-    fn add_lobe_densities(
-        &self,
-        mut pdf: f64,
-        row: (usize, f64),
-        (i, j): (usize, usize),
-        jac: f64,
-    ) -> f64 {
+    #[inline(always)]
+    fn add_lobe_densities(&self, mut pdf: f64, sel: &Sel, (i, j): (usize, usize), jac: f64) -> f64 {
         let nl = self.model.lobes.len();
         let cells = self.edges.len() - 1;
-        let base = ((view_node(row) * cells + i) * PHI_CELLS + j) * nl;
-        for (m, &d) in self.densities[base..base + nl].iter().enumerate() {
+        let base = ((view_node(sel.at) * cells + i) * PHI_CELLS + j) * nl;
+        let row = &self.densities[base..base + nl];
+        // The lobes in `sel` first, without branches (a zero density adds
+        // an exact 0, as skipping it would), then any further lobes.
+        let head = nl.min(SEL_ROW - 1);
+        for (m, &d) in row[..head].iter().enumerate() {
+            let add = sel.p[m + 1] * d * jac;
+            pdf += if d > 0.0 { add } else { 0.0 };
+        }
+        for (m, &d) in row.iter().enumerate().skip(head) {
             if d > 0.0 {
-                pdf += self.selection_at(row, m + 1) * d * jac;
+                pdf += self.selection_at(sel.at, m + 1) * d * jac;
             }
         }
         pdf
@@ -606,7 +663,7 @@ impl NpfBxdf {
         let Some((mut pdf, lobe)) = self.pdf_parts(wo, wi) else {
             return 0.0;
         };
-        let Some((row, h, t, jac)) = lobe else {
+        let Some((sel, h, t, jac)) = lobe else {
             return pdf;
         };
         // One cell lookup serves every lobe: they share the edges.
@@ -615,10 +672,12 @@ impl NpfBxdf {
         let (ex, ey) = azimuth_frame(wo);
         let phi = relative_azimuth(h, ex, ey);
         let j = ((phi / PI * PHI_CELLS as f64) as usize).min(PHI_CELLS - 1);
-        let view = view_node(row);
+        let view = view_node(sel.at);
         for (m, tables) in self.lobes.iter().enumerate() {
             if let Some(tables) = tables {
-                let p = self.selection_at(row, m + 1);
+                // Interpolated here, not read from `sel`: the reference for
+                // the per-draw row too.
+                let p = self.selection_at(sel.at, m + 1);
                 if p > 0.0 {
                     pdf += p * tables[view].cell_density(i, j) * jac;
                 }
@@ -647,9 +706,9 @@ impl NpfBxdf {
         if !(wo[2] > 0.0) {
             return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         }
-        let row = self.selection_row(wo[2]);
-        match self.pick(row, u_lobe, u)? {
-            Pick::Diffuse(wi) => self.finish_diffuse(wo, row, wi),
+        let sel = self.selection_row_at(self.selection_row(wo[2]));
+        match self.pick(&sel, u_lobe, u)? {
+            Pick::Diffuse(wi) => self.finish_diffuse(wo, &sel, wi),
             Pick::Lobe {
                 m,
                 cell,
@@ -658,7 +717,7 @@ impl NpfBxdf {
                 sign,
             } => {
                 let r = reflection::<f64>(wo, t, sign, azimuth_centre(cell.1), dv);
-                self.finish_lobe(wo, row, m, cell, &r)
+                self.finish_lobe(wo, &sel, m, cell, &r)
             }
         }
     }
@@ -686,12 +745,16 @@ impl NpfBxdf {
         // Lanes of other draws get a harmless lobe draw, then discarded.
         let (mut t, mut sign, mut dv) = ([0.0; 4], [1.0; 4], [0.5; 4]);
         let (mut sc, mut cc) = ([0.0; 4], [1.0; 4]);
-        let mut rows = [(0, 0.0); 4];
-        let mut picks = [Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse)); 4];
+        let lost = Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
+        let mut sels = [Sel {
+            at: (0, 0.0),
+            p: [0.0; SEL_ROW],
+        }; 4];
+        let mut picks = [lost; 4];
         for k in 0..4 {
-            rows[k] = row_at_angle(theta[k]);
+            sels[k] = self.selection_row_at(row_at_angle(theta[k]));
             if wo[k][2] > 0.0 {
-                picks[k] = self.pick(rows[k], u_lobe[k], u[k]);
+                picks[k] = self.pick(&sels[k], u_lobe[k], u[k]);
             }
             if let Ok(Pick::Lobe {
                 cell,
@@ -718,11 +781,12 @@ impl NpfBxdf {
         let wo_h = r.wo_h.to_array();
         let (s_z, wo_s) = (r.jac.s_z.to_array(), r.jac.wo_s.to_array());
         let (r2, jac) = (r.jac.r2.to_array(), r.jac.jac.to_array());
-        let mut out = picks.map(|p| p.map(|_| ([0.0; 3], 0.0, Component::Diffuse)));
+        // Every entry is written below (no `picks.map`: an out-of-line call).
+        let mut out: [Drawn; 4] = [Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse)); 4];
         for k in 0..4 {
             out[k] = match picks[k] {
                 Err(lost) => Err(lost),
-                Ok(Pick::Diffuse(wi)) => self.finish_diffuse(wo[k], rows[k], wi),
+                Ok(Pick::Diffuse(wi)) => self.finish_diffuse(wo[k], &sels[k], wi),
                 Ok(Pick::Lobe { m, cell, .. }) => {
                     let r = Reflection {
                         wi: [wi0[k], wi1[k], wi2[k]],
@@ -734,7 +798,7 @@ impl NpfBxdf {
                             jac: jac[k],
                         },
                     };
-                    self.finish_lobe(wo[k], rows[k], m, cell, &r)
+                    self.finish_lobe(wo[k], &sels[k], m, cell, &r)
                 }
             };
         }
@@ -746,13 +810,13 @@ impl NpfBxdf {
     /// its table draws (the diffuse direction whole). The lost sample
     /// when there is nothing to draw from or the direction is unusable.
     #[inline(always)]
-    fn pick(&self, row: (usize, f64), u_lobe: f64, u: [f64; 2]) -> Result<Pick, BsdfSample> {
+    fn pick(&self, sel: &Sel, u_lobe: f64, u: [f64; 2]) -> Result<Pick, BsdfSample> {
         let nc = self.components();
         let mut component = None;
         let mut acc = 0.0;
         let mut last = None;
         for c in 0..nc {
-            let p = self.selection_at(row, c);
+            let p = self.sel_p(sel, c);
             if p <= 0.0 {
                 continue;
             }
@@ -783,7 +847,7 @@ impl NpfBxdf {
         } else {
             (-1.0, (2.0 * v - 1.0).min(1.0))
         };
-        let (i, t, j, dv) = tables[view_node(row)].sample_cells([u[0], v]);
+        let (i, t, j, dv) = tables[view_node(sel.at)].sample_cells([u[0], v]);
         Ok(Pick::Lobe {
             m,
             cell: (i, j),
@@ -795,8 +859,8 @@ impl NpfBxdf {
 
     /// A diffuse draw's result: its mixture pdf.
     #[inline(always)]
-    fn finish_diffuse(&self, wo: Vec3, row: (usize, f64), wi: Vec3) -> Drawn {
-        let pdf = self.pdf_at(wo, wi, row);
+    fn finish_diffuse(&self, wo: Vec3, sel: &Sel, wi: Vec3) -> Drawn {
+        let pdf = self.pdf_at(wo, wi, sel);
         if !(pdf > 0.0) {
             return Err(BsdfSample::lost(wi, Component::Diffuse));
         }
@@ -809,7 +873,7 @@ impl NpfBxdf {
     fn finish_lobe(
         &self,
         wo: Vec3,
-        row: (usize, f64),
+        sel: &Sel,
         m: usize,
         cell: (usize, usize),
         r: &Reflection<f64>,
@@ -823,8 +887,8 @@ impl NpfBxdf {
         // Jacobian is pdf's own, from wi (the drawn h's differs by rounding
         // that grazing views amplify past 1e-12 relative).
         let pdf = match r.jac.valid() {
-            Some(jac) => self.add_lobe_densities(self.diffuse_pdf(wi, row), row, cell, jac),
-            None => self.pdf_at(wo, wi, row),
+            Some(jac) => self.add_lobe_densities(self.diffuse_pdf(wi, sel), sel, cell, jac),
+            None => self.pdf_at(wo, wi, sel),
         };
         if !(pdf > 0.0) {
             return Err(BsdfSample::lost(wi, Component::Lobe(m)));

@@ -332,7 +332,14 @@ impl FlatEval {
     // would then be calls instead of instructions.
     #[inline(always)]
     pub(crate) fn eval4<V: Lanes4>(&self, wo: [Vec3; 4], wi: [Vec3; 4]) -> [[f64; 3]; 4] {
-        let valid = [0, 1, 2, 3].map(|k| wi[k][2] > 0.0 && wo[k][2] > 0.0);
+        // Written out: `[0, 1, 2, 3].map(..)` compiled to an out-of-line
+        // call (with a vzeroupper) in the AVX2 kernel.
+        let valid = [
+            wi[0][2] > 0.0 && wo[0][2] > 0.0,
+            wi[1][2] > 0.0 && wo[1][2] > 0.0,
+            wi[2][2] > 0.0 && wo[2][2] > 0.0,
+            wi[3][2] > 0.0 && wo[3][2] > 0.0,
+        ];
         let (ox, oy, oz) = (
             column::<V>(&wo, &valid, 0),
             column::<V>(&wo, &valid, 1),

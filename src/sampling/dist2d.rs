@@ -129,9 +129,13 @@ impl PiecewiseConstant2D {
         } else {
             0.5
         };
-        let dy = self.y_max / self.ny as f64;
-        // Stay inside cell j, as pdf will find it.
-        if self.y_cell((j as f64 + dv) * dy) != Some(j) {
+        // Stay inside cell j, as pdf will find it. Rounding moves y's cell
+        // coordinate by a few ulps of j + dv (below 1e-9 for ny < 2^20), so
+        // only a dv that close to the cell's ends needs the check (two
+        // divisions the common case skips).
+        if (dv < 1e-9 || dv > 1.0 - 1e-9 || self.ny >= 1 << 20)
+            && self.y_cell((j as f64 + dv) * (self.y_max / self.ny as f64)) != Some(j)
+        {
             return (i, x, j, 0.5);
         }
         (i, x, j, dv)
