@@ -128,33 +128,11 @@ struct PooledScales {
     rows: KeyMap<(i64, i64), [f64; 3]>,
 }
 
-/// A hash map for keys of quantised angles: Fx-style multiply-rotate
-/// hashing instead of SipHash (the keys come from the data, not from an
-/// adversary), a few times faster on the samples' integer tuples. Lookups
-/// give the same values as any other map.
-pub(crate) type KeyMap<K, V> =
-    std::collections::HashMap<K, V, std::hash::BuildHasherDefault<KeyHasher>>;
-
-/// [`KeyMap`]'s hasher.
-#[derive(Default)]
-pub(crate) struct KeyHasher(u64);
-
-impl std::hash::Hasher for KeyHasher {
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x517c_c1b7_2722_0a95);
-    }
-    fn write_i64(&mut self, v: i64) {
-        self.write_u64(v as u64);
-    }
-    fn finish(&self) -> u64 {
-        self.0
-    }
-}
+/// A hash map for keys of quantised angles: FxHash instead of SipHash
+/// (the keys come from the data, not from an adversary), a few times
+/// faster on the samples' integer tuples. Lookups give the same values as
+/// any other map, and no result depends on its iteration order.
+pub(crate) type KeyMap<K, V> = rustc_hash::FxHashMap<K, V>;
 
 /// `y.round() as i64` (half away from zero, saturating, NaN to 0) without
 /// the C library's `round` call, which the default x86-64 target cannot
