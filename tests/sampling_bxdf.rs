@@ -991,8 +991,7 @@ fn white_furnace_variances(b: &NpfBxdf, wo: Vec3, n: usize, seed: u64) -> (f64, 
         let w = lum(b.sample(wo, ul, u).weight);
         a[0] += w;
         a[1] += w * w;
-        let (r, phi) = (u[0].sqrt(), 2.0 * PI * u[1]);
-        let wi = [r * phi.cos(), r * phi.sin(), (1.0 - u[0]).max(0.0).sqrt()];
+        let wi = npf::bsdf::cosine_hemisphere(u);
         let w = if wi[2] > 0.0 {
             lum(b.eval(wo, wi)) * PI
         } else {
