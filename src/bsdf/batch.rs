@@ -283,17 +283,13 @@ impl NpfBxdf {
                     [u[1][at[3]], u[2][at[3]]],
                 ],
             );
-            for (j, d) in drawn.into_iter().enumerate().take(n - k) {
-                // The value comes later; pdf and wi as drawn for now.
-                let (w, pdf, component) = match d {
-                    Ok(d) => d,
-                    Err(lost) => (lost.wi, lost.pdf, lost.component),
-                };
-                for (c, &x) in w.iter().enumerate() {
-                    out.wi[c][k + j] = x;
+            // The value comes later; pdf and wi as drawn for now.
+            for j in 0..(n - k).min(4) {
+                for c in 0..3 {
+                    out.wi[c][k + j] = drawn.wi[c][j];
                 }
-                out.pdf[k + j] = pdf;
-                out.component[k + j] = component;
+                out.pdf[k + j] = drawn.pdf[j];
+                out.component[k + j] = drawn.component[j];
             }
             k += 4;
         }

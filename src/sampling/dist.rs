@@ -113,7 +113,10 @@ impl PiecewiseConstant {
         };
         // Last i with cdf[i] <= u (from the guide table, then forward; the
         // step back only guards the rounding of b / n against u).
-        let b = ((u * n as f64) as usize).min(n - 1);
+        // u * n in [0, n] (n < 2^31): a 32-bit truncation is the floor
+        // (fewer instructions than a saturating conversion to usize).
+        let b = ((u * n as f64) as i32).max(0) as usize;
+        let b = b.min(n - 1);
         let mut i = self.guide[b] as usize;
         while i + 1 < self.cdf.len() && self.cdf[i + 1] <= u {
             i += 1;
