@@ -7,7 +7,7 @@
 //! interface").
 
 use super::lanes::{F64x2x2, Lanes4};
-use super::{BsdfError, BsdfSample, Component, NpfBxdf};
+use super::{BsdfError, BsdfSample, Component, FlatEval, NpfBxdf};
 use npf_data_loaders::geometry::Vec3;
 
 /// Directions as a structure of arrays: component k of direction j is
@@ -211,7 +211,52 @@ impl NpfBxdf {
             return Ok(());
         };
         out.resize(n);
-        self.draw_slices(wo, u, out);
+        self.sample_slices(flat, wo, u, out);
+        Ok(())
+    }
+}
+
+impl NpfBxdf {
+    /// `sample_batch` for a model with a flat evaluator: the draws into
+    /// `out` (already of wo's length) four at a time by
+    /// [`NpfBxdf::draw4`], their values by the flat evaluator, then the
+    /// weights in lanes: AVX2 lanes where the CPU has them (detected at
+    /// run time), SSE2 pairs otherwise; the same results either way.
+    fn sample_slices(
+        &self,
+        flat: &FlatEval,
+        wo: Directions,
+        u: [&[f64]; 3],
+        out: &mut SampleBatch,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn run(
+                b: &NpfBxdf,
+                flat: &FlatEval,
+                wo: Directions,
+                u: [&[f64]; 3],
+                out: &mut SampleBatch,
+            ) {
+                b.sample_slices_in::<super::lanes::avx::F64x4>(flat, wo, u, out)
+            }
+            // SAFETY: AVX2 was detected just above.
+            return unsafe { run(self, flat, wo, u, out) };
+        }
+        self.sample_slices_in::<F64x2x2>(flat, wo, u, out)
+    }
+
+    #[inline(always)]
+    fn sample_slices_in<V: Lanes4>(
+        &self,
+        flat: &FlatEval,
+        wo: Directions,
+        u: [&[f64]; 3],
+        out: &mut SampleBatch,
+    ) {
+        let n = wo.len();
+        self.draw_slices_in::<V>(wo, u, out);
         let SampleBatch {
             wi,
             f,
@@ -221,12 +266,30 @@ impl NpfBxdf {
         } = out;
         let [f0, f1, f2] = f;
         flat.eval_slices(wo.slices(), [&wi[0], &wi[1], &wi[2]], [f0, f1, f2]);
-        // Every slice cut to n once, so the loop has no bounds checks.
+        // Every slice cut to n once, so the loops have no bounds checks.
         let [f0, f1, f2] = f.each_mut().map(|v| &mut v[..n]);
         let [w0, w1, w2] = weight.each_mut().map(|v| &mut v[..n]);
         let [x, y, z] = wi.each_ref().map(|v| &v[..n]);
         let (pdf, component) = (&mut pdf[..n], &component[..n]);
-        for j in 0..n {
+        let four = n / 4 * 4;
+        for j in (0..four).step_by(4) {
+            // Lanes: BsdfSample::new's weight and test, in its order.
+            let (p, zj) = (V::load(quad(pdf, j)), V::load(quad(z, j)));
+            let k = zj / p;
+            let fs = [
+                V::load(quad(f0, j)),
+                V::load(quad(f1, j)),
+                V::load(quad(f2, j)),
+            ];
+            f0[j..j + 4].copy_from_slice(&kept(p, zj, fs[0]).to_array());
+            f1[j..j + 4].copy_from_slice(&kept(p, zj, fs[1]).to_array());
+            f2[j..j + 4].copy_from_slice(&kept(p, zj, fs[2]).to_array());
+            w0[j..j + 4].copy_from_slice(&kept(p, zj, fs[0] * k).to_array());
+            w1[j..j + 4].copy_from_slice(&kept(p, zj, fs[1] * k).to_array());
+            w2[j..j + 4].copy_from_slice(&kept(p, zj, fs[2] * k).to_array());
+            pdf[j..j + 4].copy_from_slice(&kept(p, zj, p).to_array());
+        }
+        for j in four..n {
             // BsdfSample::new's weight and checks; a lost draw (pdf 0)
             // gets zero value and weight, as the per-call sample reports it.
             let s = BsdfSample::new(
@@ -237,29 +300,31 @@ impl NpfBxdf {
             );
             (pdf[j], [f0[j], f1[j], f2[j]], [w0[j], w1[j], w2[j]]) = (s.pdf, s.f, s.weight);
         }
-        Ok(())
     }
 }
 
-impl NpfBxdf {
-    /// The draws of `sample_batch` into `out` (wi, pdf and component of
-    /// each entry; `out` already has `wo`'s length), four at a time by
-    /// [`NpfBxdf::draw4`]: AVX2 lanes where the CPU has them (detected at
-    /// run time), SSE2 pairs otherwise; the same draws either way.
-    fn draw_slices(&self, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
-        #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") {
-            #[target_feature(enable = "avx2")]
-            fn run(b: &NpfBxdf, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
-                b.draw_slices_in::<super::lanes::avx::F64x4>(wo, u, out)
-            }
-            // SAFETY: AVX2 was detected just above.
-            return unsafe { run(self, wo, u, out) };
-        }
-        self.draw_slices_in::<F64x2x2>(wo, u, out)
-    }
+/// Entries j..j + 4 of a slice (j + 4 at most its length).
+#[inline(always)]
+fn quad(v: &[f64], j: usize) -> &[f64; 4] {
+    v[j..j + 4].try_into().expect("four entries")
+}
 
-    /// [`NpfBxdf::draw_slices`] in lane type V; a lost draw gets pdf 0.
+/// `v` where a draw carries light (0 < pdf < infinity and 0 < wi.z, the
+/// test of `BsdfSample::new`, NaN failing it), else 0, lane by lane.
+#[inline(always)]
+fn kept<V: Lanes4>(pdf: V, wi_z: V, v: V) -> V {
+    let (zero, inf) = (V::splat(0.0), V::splat(f64::INFINITY));
+    zero.lt_select(
+        pdf,
+        pdf.lt_select(inf, zero.lt_select(wi_z, v, zero), zero),
+        zero,
+    )
+}
+
+impl NpfBxdf {
+    /// The draws of `sample_batch` in lane type V into `out` (wi, pdf and
+    /// component of each entry; `out` already has `wo`'s length), four at
+    /// a time by [`NpfBxdf::draw4`]; a lost draw gets pdf 0.
     #[inline(always)]
     fn draw_slices_in<V: Lanes4>(&self, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
         let n = wo.len();

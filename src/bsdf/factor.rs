@@ -858,18 +858,22 @@ impl NpfBxdf {
         let u_lobe = if u_lobe < 0.0 { 0.0 } else { u_lobe };
         let mut acc = 0.0;
         let mut below = 0;
-        let mut last = usize::MAX;
-        for c in 0..nc {
-            let p = self.sel_p(sel, c);
+        // The row's padding (zeros past nc) adds nothing and counts only
+        // when u_lobe is at or past the total, like the components past
+        // the last with a share.
+        for &p in &sel.p {
             acc += p;
             below += usize::from(!(u_lobe < acc));
-            last = if p > 0.0 { c } else { last };
+        }
+        for c in SEL_ROW..nc {
+            acc += self.selection_at(sel.at, c);
+            below += usize::from(!(u_lobe < acc));
         }
         if below < nc {
-            Some(below)
-        } else {
-            (last < nc).then_some(last)
+            return Some(below);
         }
+        // Rare (u_lobe at the total or NaN): the last with a share.
+        (0..nc).rev().find(|&c| self.sel_p(sel, c) > 0.0)
     }
 
     /// A diffuse draw's result: its mixture pdf.
