@@ -124,10 +124,13 @@ impl PiecewiseConstant {
         while i > 0 && self.cdf[i] > u {
             i -= 1;
         }
-        let mut i = i.min(n - 1);
-        // Skip zero-probability cells (u at a plateau of the cdf, or u = 1).
-        while self.cdf[i + 1] <= self.cdf[i] && i > 0 {
-            i -= 1;
+        // Below n, cdf[i] <= u < cdf[i + 1]: cell i has mass. Only u at
+        // the end (1) walks back past cells without any.
+        if i >= n {
+            i = n - 1;
+            while self.cdf[i + 1] <= self.cdf[i] && i > 0 {
+                i -= 1;
+            }
         }
         let p = self.cdf[i + 1] - self.cdf[i];
         let du = if p > 0.0 {

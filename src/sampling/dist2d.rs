@@ -113,13 +113,17 @@ impl PiecewiseConstant2D {
         // row[1..=ny] <= v, counted without branches (a random v would
         // mispredict half of a search's branches; eight compares in SIMD
         // lanes for the bsdf's 8-cell rows).
-        let j = match <&[f64; 8]>::try_from(&row[1..]) {
+        let mut j = match <&[f64; 8]>::try_from(&row[1..]) {
             Ok(r) => count_le(r, v),
             Err(_) => row[1..].iter().map(|&c| usize::from(c <= v)).sum(),
         };
-        let mut j = j.min(ny - 1);
-        while row[j + 1] <= row[j] && j > 0 {
-            j -= 1;
+        // Below ny, row[j] <= v < row[j + 1]: cell j has mass. Only v at
+        // the row's end (1) needs the walk back past cells without any.
+        if j >= ny {
+            j = ny - 1;
+            while row[j + 1] <= row[j] && j > 0 {
+                j -= 1;
+            }
         }
         let p = row[j + 1] - row[j];
         let dv = if p > 0.0 {
