@@ -230,4 +230,16 @@ mod tests {
             assert_eq!(d.sample_cell(u).0, reference(uc), "u = {u}");
         }
     }
+
+    #[test]
+    fn u_at_one_draws_the_last_cell_with_mass() {
+        // Trailing empty cells: u = 1 (and above, clamped) walks back past
+        // them; just below 1 the search lands there directly.
+        let d =
+            PiecewiseConstant::new(vec![0.0, 0.1, 0.5, 0.7, 1.0], &[1.0, 2.0, 0.0, 0.0]).unwrap();
+        for u in [1.0, 2.0, 1.0 - 1e-12] {
+            assert_eq!(d.sample_cell(u).0, 1, "u = {u}");
+        }
+        assert_eq!(d.sample_cell(0.0).0, 0);
+    }
 }

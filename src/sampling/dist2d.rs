@@ -220,4 +220,20 @@ mod tests {
         assert!(PiecewiseConstant2D::new(vec![0.0, 1.0], 2, 1.0, &[0.0, 0.0]).is_none());
         assert!(PiecewiseConstant2D::new(vec![0.0, 1.0], 2, 1.0, &[f64::NAN, 1.0]).is_none());
     }
+
+    #[test]
+    fn v_at_one_draws_the_last_y_cell_with_mass() {
+        // Eight y cells (the bsdf's counted search) and three (the general
+        // one), each row ending in empty cells.
+        for ny in [8, 3] {
+            let mut mass = vec![0.0; 2 * ny];
+            (mass[0], mass[1], mass[ny]) = (1.0, 1.0, 1.0);
+            let d = PiecewiseConstant2D::new(vec![0.0, 0.5, 1.0], ny, 1.0, &mass).unwrap();
+            for v in [1.0, 2.0, 1.0 - 1e-12] {
+                assert_eq!(d.sample_cells([0.25, v]).2, 1, "ny {ny} v {v}");
+                assert_eq!(d.sample_cells([0.75, v]).2, 0, "ny {ny} v {v}");
+            }
+            assert_eq!(d.sample_cells([0.25, 0.25]).2, 0);
+        }
+    }
 }
