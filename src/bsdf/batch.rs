@@ -328,6 +328,16 @@ impl NpfBxdf {
     #[inline(always)]
     fn draw_slices_in<V: Lanes4>(&self, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
         let n = wo.len();
+        // Every slice cut to n once (fewer bounds checks in the loop).
+        let [x, y, z] = wo.slices();
+        let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
+        let (u0, u1, u2) = (&u[0][..n], &u[1][..n], &u[2][..n]);
+        let SampleBatch {
+            wi, pdf, component, ..
+        } = out;
+        let [o0, o1, o2] = wi;
+        let (o0, o1, o2) = (&mut o0[..n], &mut o1[..n], &mut o2[..n]);
+        let (pdf, component) = (&mut pdf[..n], &mut component[..n]);
         let mut k = 0;
         while k < n {
             // The last group repeats its final draw in its unused slots.
@@ -339,23 +349,27 @@ impl NpfBxdf {
                 (k + 3).min(n - 1),
             ];
             let drawn = self.draw4::<V>(
-                [wo.get(at[0]), wo.get(at[1]), wo.get(at[2]), wo.get(at[3])],
-                [u[0][at[0]], u[0][at[1]], u[0][at[2]], u[0][at[3]]],
                 [
-                    [u[1][at[0]], u[2][at[0]]],
-                    [u[1][at[1]], u[2][at[1]]],
-                    [u[1][at[2]], u[2][at[2]]],
-                    [u[1][at[3]], u[2][at[3]]],
+                    [x[at[0]], y[at[0]], z[at[0]]],
+                    [x[at[1]], y[at[1]], z[at[1]]],
+                    [x[at[2]], y[at[2]], z[at[2]]],
+                    [x[at[3]], y[at[3]], z[at[3]]],
+                ],
+                [u0[at[0]], u0[at[1]], u0[at[2]], u0[at[3]]],
+                [
+                    [u1[at[0]], u2[at[0]]],
+                    [u1[at[1]], u2[at[1]]],
+                    [u1[at[2]], u2[at[2]]],
+                    [u1[at[3]], u2[at[3]]],
                 ],
             );
             // The value comes later; pdf and wi as drawn for now.
-            for j in 0..(n - k).min(4) {
-                for c in 0..3 {
-                    out.wi[c][k + j] = drawn.wi[c][j];
-                }
-                out.pdf[k + j] = drawn.pdf[j];
-                out.component[k + j] = drawn.component[j];
-            }
+            let m = (n - k).min(4);
+            o0[k..k + m].copy_from_slice(&drawn.wi[0][..m]);
+            o1[k..k + m].copy_from_slice(&drawn.wi[1][..m]);
+            o2[k..k + m].copy_from_slice(&drawn.wi[2][..m]);
+            pdf[k..k + m].copy_from_slice(&drawn.pdf[..m]);
+            component[k..k + m].copy_from_slice(&drawn.component[..m]);
             k += 4;
         }
     }
