@@ -374,3 +374,61 @@ impl NpfBxdf {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Layout;
+    use crate::synth::known_factor_model;
+
+    /// The batch sample in SSE2 pairs (the path of CPUs without AVX2; the
+    /// public tests run AVX2 where the CPU has it) equals the per-call
+    /// samples bit for bit, lost draws included.
+    #[test]
+    fn the_sse2_batch_sample_equals_the_per_call_samples() {
+        let mut model = known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]);
+        model.diffuse = [0.2, 0.1, 0.05];
+        let b = NpfBxdf::new(model).unwrap();
+        let flat = b.flat().expect("a flat model");
+        let n = 1023;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut wo: [Vec<f64>; 3] = Default::default();
+        let mut u: [Vec<f64>; 3] = Default::default();
+        for j in 0..n {
+            // Views up to grazing and a few below the horizon.
+            let z = if j % 50 == 0 { -0.2 } else { next() };
+            let (r, p) = ((1.0 - z * z).max(0.0).sqrt(), next() * std::f64::consts::TAU);
+            for (c, v) in [r * p.cos(), r * p.sin(), z].into_iter().enumerate() {
+                wo[c].push(v);
+            }
+            for v in &mut u {
+                v.push(next());
+            }
+        }
+        let d = Directions::new(&wo[0], &wo[1], &wo[2]).unwrap();
+        let mut out = SampleBatch::default();
+        out.resize(n);
+        b.sample_slices_in::<F64x2x2>(flat, d, [&u[0], &u[1], &u[2]], &mut out);
+        let mut lit = 0;
+        for j in 0..n {
+            let one = b.sample(d.get(j), u[0][j], [u[1][j], u[2][j]]);
+            let got = out.get(j);
+            let bits = |s: &BsdfSample| {
+                let v: Vec<u64> = (s.wi.iter().chain(&s.f).chain(&s.weight))
+                    .chain([&s.pdf])
+                    .map(|x| x.to_bits())
+                    .collect();
+                (v, s.component)
+            };
+            assert_eq!(bits(&got), bits(&one), "draw {j}");
+            lit += usize::from(!one.is_lost());
+        }
+        assert!(lit > n / 2, "{lit} of {n} carry light");
+    }
+}
