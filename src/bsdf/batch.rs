@@ -403,7 +403,10 @@ mod tests {
         for j in 0..n {
             // Views up to grazing and a few below the horizon.
             let z = if j % 50 == 0 { -0.2 } else { next() };
-            let (r, p) = ((1.0 - z * z).max(0.0).sqrt(), next() * std::f64::consts::TAU);
+            let (r, p) = (
+                (1.0 - z * z).max(0.0).sqrt(),
+                next() * std::f64::consts::TAU,
+            );
             for (c, v) in [r * p.cos(), r * p.sin(), z].into_iter().enumerate() {
                 wo[c].push(v);
             }
