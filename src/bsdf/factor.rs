@@ -707,28 +707,27 @@ impl NpfBxdf {
             return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         }
         let sel = self.selection_row_at(self.selection_row(wo[2]));
-        match self.pick(&sel, u_lobe, u)? {
-            Pick::Diffuse(wi) => self.finish_diffuse(wo, &sel, wi),
-            Pick::Lobe {
-                m,
-                cell,
-                t,
-                dv,
-                sign,
-            } => {
-                let r = reflection::<f64>(wo, t, sign, azimuth_centre(cell.1), dv);
-                self.finish_lobe(wo, &sel, m, cell, &r)
-            }
+        let Some(c) = self.choose(&sel, u_lobe) else {
+            return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
+        };
+        if c == 0 {
+            return self.diffuse_draw(wo, &sel, u);
         }
+        let (cell, t, dv, sign) = self.lobe_cells(&sel, c - 1, u);
+        let r = reflection::<f64>(wo, t, sign, azimuth_centre(cell.1), dv);
+        self.finish_lobe(wo, &sel, c - 1, cell, &r)
     }
 
     /// [`NpfBxdf::draw`] of four views at once, exactly its results (bit
-    /// for bit, tested): the view arccosines and each lobe draw's
-    /// reflection and Jacobian in four lanes `V` (the square roots, the
-    /// azimuth polynomials, the frame's division), the four draws'
-    /// component choices, table searches and density reads one by one
-    /// (independent, so the core overlaps them). Every lane sees the
-    /// operations of `draw` in its order.
+    /// for bit, tested), lane k of each array for draw k, a lost draw with
+    /// pdf 0 and the direction and component `draw` reports: the view
+    /// arccosines and each lobe draw's reflection and Jacobian in four
+    /// lanes `V` (the square roots, the azimuth polynomials, the frame's
+    /// division), the four draws' component choices, table searches and
+    /// density reads one by one (independent, so the core overlaps them).
+    /// Every lane sees the operations of `draw` in its order. The results
+    /// go straight to arrays (no `Drawn` per lane: moving those enums cost
+    /// about 50 instructions a draw).
     // No closures around lane operations (see `FlatEval::eval4`).
     #[inline(always)]
     pub(crate) fn draw4<V: Lanes4>(
@@ -736,37 +735,48 @@ impl NpfBxdf {
         wo: [Vec3; 4],
         u_lobe: [f64; 4],
         u: [[f64; 2]; 4],
-    ) -> [Drawn; 4] {
+    ) -> Drawn4 {
         let mut cos = [0.0; 4];
         for k in 0..4 {
             cos[k] = wo[k][2].clamp(0.0, 1.0);
         }
         let theta = acos_lanes(V::load(&cos)).to_array();
+        let mut out = Drawn4 {
+            wi: [[0.0; 4], [0.0; 4], [1.0; 4]],
+            pdf: [0.0; 4],
+            component: [Component::Diffuse; 4],
+        };
         // Lanes of other draws get a harmless lobe draw, then discarded.
         let (mut t, mut sign, mut dv) = ([0.0; 4], [1.0; 4], [0.5; 4]);
         let (mut sc, mut cc) = ([0.0; 4], [1.0; 4]);
-        let lost = Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
         let mut sels = [Sel {
             at: (0, 0.0),
             p: [0.0; SEL_ROW],
         }; 4];
-        let mut picks = [lost; 4];
+        // The t and azimuth cells of each lobe draw (None: no lobe draw).
+        let mut cells = [None; 4];
         for k in 0..4 {
             sels[k] = self.selection_row_at(row_at_angle(theta[k]));
-            if wo[k][2] > 0.0 {
-                picks[k] = self.pick(&sels[k], u_lobe[k], u[k]);
+            if !(wo[k][2] > 0.0) {
+                continue;
             }
-            if let Ok(Pick::Lobe {
-                cell,
-                t: tk,
-                dv: d,
-                sign: s,
-                ..
-            }) = picks[k]
-            {
-                [sc[k], cc[k]] = azimuth_centre(cell.1);
-                (t[k], sign[k], dv[k]) = (tk, s, d);
+            let Some(c) = self.choose(&sels[k], u_lobe[k]) else {
+                continue;
+            };
+            if c == 0 {
+                let (wi, pdf) = match self.diffuse_draw(wo[k], &sels[k], u[k]) {
+                    Ok((wi, pdf, _)) => (wi, pdf),
+                    Err(lost) => (lost.wi, 0.0),
+                };
+                (out.wi[0][k], out.wi[1][k], out.wi[2][k]) = (wi[0], wi[1], wi[2]);
+                out.pdf[k] = pdf;
+                continue;
             }
+            let (cell, tk, d, s) = self.lobe_cells(&sels[k], c - 1, u[k]);
+            out.component[k] = Component::Lobe(c - 1);
+            cells[k] = Some(cell);
+            [sc[k], cc[k]] = azimuth_centre(cell.1);
+            (t[k], sign[k], dv[k]) = (tk, s, d);
         }
         let column = |c: usize| [wo[0][c], wo[1][c], wo[2][c], wo[3][c]];
         let (o0, o1, o2) = (column(0), column(1), column(2));
@@ -781,63 +791,44 @@ impl NpfBxdf {
         let wo_h = r.wo_h.to_array();
         let (s_z, wo_s) = (r.jac.s_z.to_array(), r.jac.wo_s.to_array());
         let (r2, jac) = (r.jac.r2.to_array(), r.jac.jac.to_array());
-        // Every entry is written below (no `picks.map`: an out-of-line call).
-        let mut out: [Drawn; 4] = [Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse)); 4];
         for k in 0..4 {
-            out[k] = match picks[k] {
-                Err(lost) => Err(lost),
-                Ok(Pick::Diffuse(wi)) => self.finish_diffuse(wo[k], &sels[k], wi),
-                Ok(Pick::Lobe { m, cell, .. }) => {
-                    let r = Reflection {
-                        wi: [wi0[k], wi1[k], wi2[k]],
-                        wo_h: wo_h[k],
-                        jac: JacobianParts {
-                            s_z: s_z[k],
-                            wo_s: wo_s[k],
-                            r2: r2[k],
-                            jac: jac[k],
-                        },
-                    };
-                    self.finish_lobe(wo[k], &sels[k], m, cell, &r)
-                }
+            let (Some(cell), Component::Lobe(m)) = (cells[k], out.component[k]) else {
+                continue;
+            };
+            let r = Reflection {
+                wi: [wi0[k], wi1[k], wi2[k]],
+                wo_h: wo_h[k],
+                jac: JacobianParts {
+                    s_z: s_z[k],
+                    wo_s: wo_s[k],
+                    r2: r2[k],
+                    jac: jac[k],
+                },
+            };
+            (out.wi[0][k], out.wi[1][k], out.wi[2][k]) = (wi0[k], wi1[k], wi2[k]);
+            out.pdf[k] = match self.finish_lobe(wo[k], &sels[k], m, cell, &r) {
+                Ok((_, pdf, _)) => pdf,
+                Err(_) => 0.0,
             };
         }
         out
     }
 
-    /// The scalar first half of a draw at a view's selection-table
-    /// position: the component from `u_lobe` and, for a lobe, the cells
-    /// its table draws (the diffuse direction whole). The lost sample
-    /// when there is nothing to draw from or the direction is unusable.
+    /// A diffuse draw whole (the cosine direction and its mixture pdf), as
+    /// `draw` makes it.
     #[inline(always)]
-    fn pick(&self, sel: &Sel, u_lobe: f64, u: [f64; 2]) -> Result<Pick, BsdfSample> {
-        let nc = self.components();
-        let mut component = None;
-        let mut acc = 0.0;
-        let mut last = None;
-        for c in 0..nc {
-            let p = self.sel_p(sel, c);
-            if p <= 0.0 {
-                continue;
-            }
-            last = Some(c);
-            acc += p;
-            if u_lobe < acc {
-                component = Some(c);
-                break;
-            }
+    fn diffuse_draw(&self, wo: Vec3, sel: &Sel, u: [f64; 2]) -> Drawn {
+        let wi = cosine_hemisphere(u);
+        if !(wi[2] > 0.0) {
+            return Err(BsdfSample::lost(wi, Component::Diffuse));
         }
-        let Some(c) = component.or(last) else {
-            return Err(BsdfSample::lost([0.0, 0.0, 1.0], Component::Diffuse));
-        };
-        if c == 0 {
-            let wi = cosine_hemisphere(u);
-            if !(wi[2] > 0.0) {
-                return Err(BsdfSample::lost(wi, Component::Diffuse));
-            }
-            return Ok(Pick::Diffuse(wi));
-        }
-        let m = c - 1;
+        self.finish_diffuse(wo, sel, wi)
+    }
+
+    /// Lobe m's table draw at a view: the (t, azimuth) cells, t, the
+    /// azimuth's position in its cell and its sign.
+    #[inline(always)]
+    fn lobe_cells(&self, sel: &Sel, m: usize, u: [f64; 2]) -> ((usize, usize), f64, f64, f64) {
         let tables = self.lobes[m].as_ref().expect("selected lobes have tables");
         // u[1]: the sign of the relative azimuth (below or above 1/2) and,
         // rescaled, its magnitude.
@@ -848,13 +839,41 @@ impl NpfBxdf {
             (-1.0, (2.0 * v - 1.0).min(1.0))
         };
         let (i, t, j, dv) = tables[view_node(sel.at)].sample_cells([u[0], v]);
-        Ok(Pick::Lobe {
-            m,
-            cell: (i, j),
-            t,
-            dv,
-            sign,
-        })
+        ((i, j), t, dv, sign)
+    }
+
+    /// The component `u_lobe` picks: the first with u_lobe below its
+    /// cumulative share, else (u_lobe at or past the total, or NaN) the last
+    /// with a share; None when none has one. Without branches: the first
+    /// such component is the count of cumulative shares at most u_lobe
+    /// (shares are never negative, so the sums do not decrease, and a
+    /// component without a share adds an exact 0), which a random u_lobe
+    /// would mispredict as a loop exit.
+    #[inline(always)]
+    fn choose(&self, sel: &Sel, u_lobe: f64) -> Option<usize> {
+        let nc = self.components();
+        // A negative u_lobe picks the first component with a share, as 0
+        // does (leading components without one then count as at most u).
+        // NaN stays NaN: it compares with nothing and picks the last.
+        let u_lobe = if u_lobe < 0.0 { 0.0 } else { u_lobe };
+        let mut acc = 0.0;
+        let mut below = 0;
+        // The row's padding (zeros past nc) adds nothing and counts only
+        // when u_lobe is at or past the total, like the components past
+        // the last with a share.
+        for &p in &sel.p {
+            acc += p;
+            below += usize::from(!(u_lobe < acc));
+        }
+        for c in SEL_ROW..nc {
+            acc += self.selection_at(sel.at, c);
+            below += usize::from(!(u_lobe < acc));
+        }
+        if below < nc {
+            return Some(below);
+        }
+        // Rare (u_lobe at the total or NaN): the last with a share.
+        (0..nc).rev().find(|&c| self.sel_p(sel, c) > 0.0)
     }
 
     /// A diffuse draw's result: its mixture pdf.
@@ -964,20 +983,13 @@ impl NpfBxdf {
 /// A draw of [`NpfBxdf::draw`]: (wi, pdf, component), or the lost sample.
 pub(crate) type Drawn = Result<(Vec3, f64, Component), BsdfSample>;
 
-/// The scalar first half of a draw (see `NpfBxdf::pick`).
+/// Four draws of [`NpfBxdf::draw4`]: lane k of each array is draw k (wi
+/// per coordinate, pdf 0 when lost).
 #[derive(Clone, Copy, Debug)]
-enum Pick {
-    /// A diffuse direction, above the horizon.
-    Diffuse(Vec3),
-    /// Lobe m's table cells (t cell, azimuth cell), t in its cell, the
-    /// azimuth's position dv in [0, 1] in its cell and its sign (1 or -1).
-    Lobe {
-        m: usize,
-        cell: (usize, usize),
-        t: f64,
-        dv: f64,
-        sign: f64,
-    },
+pub(crate) struct Drawn4 {
+    pub wi: [[f64; 4]; 3],
+    pub pdf: [f64; 4],
+    pub component: [Component; 4],
 }
 
 /// What the lobe Jacobian is made of, from s = wi + wo (h's direction,
@@ -1535,11 +1547,17 @@ mod tests {
             let got = b.draw4::<V>(wo, ul, u);
             for k in 0..4 {
                 let one = b.draw(wo[k], ul[k], u[k]);
-                let bits = |d: &Drawn| match d {
-                    Ok((wi, pdf, c)) => (wi.map(f64::to_bits), pdf.to_bits(), *c),
-                    Err(l) => (l.wi.map(f64::to_bits), l.pdf.to_bits(), l.component),
+                let (wi, pdf, c) = match one {
+                    Ok(d) => d,
+                    Err(l) => (l.wi, l.pdf, l.component),
                 };
-                assert_eq!(bits(&got[k]), bits(&one), "{wo:?} {ul:?} {u:?} lane {k}");
+                let four = (
+                    [got.wi[0][k], got.wi[1][k], got.wi[2][k]].map(f64::to_bits),
+                    got.pdf[k].to_bits(),
+                    got.component[k],
+                );
+                let one_bits = (wi.map(f64::to_bits), pdf.to_bits(), c);
+                assert_eq!(four, one_bits, "{wo:?} {ul:?} {u:?} lane {k}");
                 drawn += usize::from(one.is_ok());
             }
         }

@@ -113,7 +113,10 @@ impl PiecewiseConstant {
         };
         // Last i with cdf[i] <= u (from the guide table, then forward; the
         // step back only guards the rounding of b / n against u).
-        let b = ((u * n as f64) as usize).min(n - 1);
+        // u * n in [0, n] (n < 2^31): a 32-bit truncation is the floor
+        // (fewer instructions than a saturating conversion to usize).
+        let b = ((u * n as f64) as i32).max(0) as usize;
+        let b = b.min(n - 1);
         let mut i = self.guide[b] as usize;
         while i + 1 < self.cdf.len() && self.cdf[i + 1] <= u {
             i += 1;
@@ -121,10 +124,13 @@ impl PiecewiseConstant {
         while i > 0 && self.cdf[i] > u {
             i -= 1;
         }
-        let mut i = i.min(n - 1);
-        // Skip zero-probability cells (u at a plateau of the cdf, or u = 1).
-        while self.cdf[i + 1] <= self.cdf[i] && i > 0 {
-            i -= 1;
+        // Below n, cdf[i] <= u < cdf[i + 1]: cell i has mass. Only u at
+        // the end (1) walks back past cells without any.
+        if i >= n {
+            i = n - 1;
+            while self.cdf[i + 1] <= self.cdf[i] && i > 0 {
+                i -= 1;
+            }
         }
         let p = self.cdf[i + 1] - self.cdf[i];
         let du = if p > 0.0 {
@@ -223,5 +229,17 @@ mod tests {
             let uc = u.clamp(0.0, 1.0);
             assert_eq!(d.sample_cell(u).0, reference(uc), "u = {u}");
         }
+    }
+
+    #[test]
+    fn u_at_one_draws_the_last_cell_with_mass() {
+        // Trailing empty cells: u = 1 (and above, clamped) walks back past
+        // them; just below 1 the search lands there directly.
+        let d =
+            PiecewiseConstant::new(vec![0.0, 0.1, 0.5, 0.7, 1.0], &[1.0, 2.0, 0.0, 0.0]).unwrap();
+        for u in [1.0, 2.0, 1.0 - 1e-12] {
+            assert_eq!(d.sample_cell(u).0, 1, "u = {u}");
+        }
+        assert_eq!(d.sample_cell(0.0).0, 0);
     }
 }

@@ -109,19 +109,21 @@ impl PiecewiseConstant2D {
         let ny = self.ny;
         let row = &self.cdf[i * (ny + 1)..(i + 1) * (ny + 1)];
         // The last j with row[j] <= v (row[0] = 0 <= v), as a binary search
-        // finds it, by fixed steps without data-dependent branches (a
-        // random v would mispredict half of a search's branches): indices
-        // past the row read its last entry, which only overshoots when
-        // row[ny] <= v, where the answer is clamped to ny - 1 anyway.
-        let mut j = 0;
-        let mut step = (ny + 1).next_power_of_two() / 2;
-        while step > 0 {
-            j += step * usize::from(row[(j + step).min(ny)] <= v);
-            step /= 2;
-        }
-        let mut j = j.min(ny - 1);
-        while row[j + 1] <= row[j] && j > 0 {
-            j -= 1;
+        // finds it: the row is non-decreasing, so that j is the count of
+        // row[1..=ny] <= v, counted without branches (a random v would
+        // mispredict half of a search's branches; eight compares in SIMD
+        // lanes for the bsdf's 8-cell rows).
+        let mut j = match <&[f64; 8]>::try_from(&row[1..]) {
+            Ok(r) => count_le(r, v),
+            Err(_) => row[1..].iter().map(|&c| usize::from(c <= v)).sum(),
+        };
+        // Below ny, row[j] <= v < row[j + 1]: cell j has mass. Only v at
+        // the row's end (1) needs the walk back past cells without any.
+        if j >= ny {
+            j = ny - 1;
+            while row[j + 1] <= row[j] && j > 0 {
+                j -= 1;
+            }
         }
         let p = row[j + 1] - row[j];
         let dv = if p > 0.0 {
@@ -167,6 +169,16 @@ impl PiecewiseConstant2D {
     }
 }
 
+/// How many of the eight entries are at most v (a NaN entry counts not).
+#[inline(always)]
+fn count_le(r: &[f64; 8], v: f64) -> usize {
+    let mut n = 0;
+    for &c in r {
+        n += usize::from(c <= v);
+    }
+    n
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -207,5 +219,21 @@ mod tests {
         assert_eq!(d.pdf(0.1, 3.0), 0.0);
         assert!(PiecewiseConstant2D::new(vec![0.0, 1.0], 2, 1.0, &[0.0, 0.0]).is_none());
         assert!(PiecewiseConstant2D::new(vec![0.0, 1.0], 2, 1.0, &[f64::NAN, 1.0]).is_none());
+    }
+
+    #[test]
+    fn v_at_one_draws_the_last_y_cell_with_mass() {
+        // Eight y cells (the bsdf's counted search) and three (the general
+        // one), each row ending in empty cells.
+        for ny in [8, 3] {
+            let mut mass = vec![0.0; 2 * ny];
+            (mass[0], mass[1], mass[ny]) = (1.0, 1.0, 1.0);
+            let d = PiecewiseConstant2D::new(vec![0.0, 0.5, 1.0], ny, 1.0, &mass).unwrap();
+            for v in [1.0, 2.0, 1.0 - 1e-12] {
+                assert_eq!(d.sample_cells([0.25, v]).2, 1, "ny {ny} v {v}");
+                assert_eq!(d.sample_cells([0.75, v]).2, 0, "ny {ny} v {v}");
+            }
+            assert_eq!(d.sample_cells([0.25, 0.25]).2, 0);
+        }
     }
 }
