@@ -16,6 +16,7 @@
 pub mod diffuse;
 pub mod executor;
 pub mod g2_update;
+mod g_avx;
 pub mod g_update;
 pub mod gauge;
 pub mod gauss_newton;
