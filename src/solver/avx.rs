@@ -1,14 +1,16 @@
-//! The G pass's per-entry loops ([`super::g_update`]) four entries at a
-//! time in AVX registers, where the processor has AVX2 (detected at run
-//! time; the default target has SSE2 only).
+//! The solver's hottest per-sample loops in AVX registers, where the
+//! processor has AVX2 (detected at run time; the default target has SSE2
+//! only). Each is bit-identical to its scalar loop: every sum gets the same
+//! products in the same order (no fused multiply-add); only the packing
+//! changes.
 //!
-//! Bit-identical to the scalar loops: each entry's terms are the same
-//! products and sums in the same order (one entry per lane, no fused
-//! multiply-add), and the entries' terms are added to the even and odd
-//! sums in the scalar loop's order (entry 4k and 4k+2 to the even sum,
-//! 4k+1 and 4k+3 to the odd one, one after the other). Only the loads and
-//! the arithmetic's packing change: about a third of the scalar loop's
-//! instructions an entry.
+//! - The G pass ([`super::g_update`]) four entries at a time: one entry per
+//!   lane, and the entries' terms added to the even and odd sums in the
+//!   scalar loop's order (entry 4k and 4k+2 to the even sum, 4k+1 and 4k+3
+//!   to the odd one, one after the other); about a third of the scalar
+//!   loop's instructions an entry.
+//! - The (d, s) solve's Gram sums ([`super::updates`]): one row of the
+//!   4 x 4 Gram matrix (3 lobes and the diffuse basis) per register.
 
 use super::g_update::GWork;
 use crate::grid::Weight;
@@ -30,6 +32,7 @@ pub(crate) fn available() -> bool {
 mod x86 {
     use super::{GWork, Weight};
     use crate::solver::g_update::cubic_terms;
+    use crate::solver::updates::{GramInput, MAXK, SIZE};
     use std::arch::x86_64::*;
 
     // GWork's four f64 fields are one 32-byte row.
@@ -165,10 +168,51 @@ mod x86 {
         }
         k
     }
+
+    /// `updates::gram_sums` with each Gram row's products in one register
+    /// (the lower triangle's lanes are computed and discarded).
+    ///
+    /// # Safety
+    /// AVX2 must be available ([`super::available`]).
+    #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn gram_sums<const LOBES: usize>(
+        g: GramInput,
+        range: std::ops::Range<usize>,
+    ) -> [f64; SIZE] {
+        const { assert!(MAXK == 4, "a Gram row is one register") };
+        let k = LOBES + 1;
+        let mut rows = [[_mm256_setzero_pd(); MAXK]; 3];
+        let mut rhs = [_mm256_setzero_pd(); 3];
+        for j in range {
+            for (ch, (b, w, y)) in g.sample::<LOBES>(j).into_iter().enumerate() {
+                let bv = _mm256_loadu_pd(b.as_ptr());
+                let mut wb = [0.0; MAXK];
+                for a in 0..k {
+                    wb[a] = w * b[a];
+                    let row = _mm256_mul_pd(_mm256_set1_pd(wb[a]), bv);
+                    rows[ch][a] = _mm256_add_pd(rows[ch][a], row);
+                }
+                let r = _mm256_mul_pd(_mm256_loadu_pd(wb.as_ptr()), _mm256_set1_pd(y));
+                rhs[ch] = _mm256_add_pd(rhs[ch], r);
+            }
+        }
+        let mut acc = [0.0; SIZE];
+        for ch in 0..3 {
+            let base = ch * (MAXK * MAXK + MAXK);
+            let mut lanes = [0.0; MAXK];
+            for a in 0..k {
+                _mm256_storeu_pd(lanes.as_mut_ptr(), rows[ch][a]);
+                acc[base + a * MAXK + a..base + a * MAXK + k].copy_from_slice(&lanes[a..k]);
+            }
+            _mm256_storeu_pd(lanes.as_mut_ptr(), rhs[ch]);
+            acc[base + MAXK * MAXK..base + MAXK * MAXK + k].copy_from_slice(&lanes[..k]);
+        }
+        acc
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
-pub(crate) use x86::{apply_step, cubic_sums};
+pub(crate) use x86::{apply_step, cubic_sums, gram_sums};
 
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
@@ -248,6 +292,69 @@ mod tests {
                     .collect()
             };
             assert!(bits(&scalar) == bits(&vector), "{entries} entries");
+        }
+    }
+
+    #[test]
+    fn gram_sums_are_bit_identical_to_the_scalar_loop() {
+        use crate::model::{Layout, Masking};
+        use crate::samples::{FitSet, SampleOptions};
+        use crate::solver::state::Cache;
+        use crate::solver::updates::{gram_sums as scalar, GramInput};
+        if !available() {
+            return;
+        }
+        let brdf = crate::synth::GgxLambert {
+            kd: [0.3, 0.2, 0.1],
+            f0: [0.9, 0.6, 0.3],
+            alpha: 0.2,
+        };
+        let samples = crate::coarse::decimate(&brdf.table().samples("t"), 64);
+        let set = FitSet::build(&samples, Layout::default(), SampleOptions::default()).unwrap();
+        let (work, ..) = case(3 * set.len(), 0, 11);
+        let v = |j: usize, i: usize| [work[j].gi, work[j].go, work[j].sr, work[j].sa][i % 4];
+        let cache: Vec<Cache> = (0..set.len())
+            .map(|j| Cache {
+                dv: [v(j, 0).abs(), v(j, 1).abs(), v(j, 2).abs()],
+                gi: [
+                    v(j + set.len(), 0),
+                    v(j + set.len(), 1),
+                    v(j + set.len(), 2),
+                ],
+                go: [v(j + set.len(), 3), v(j, 3), v(j + 2 * set.len(), 0)],
+                fv: [v(j + 2 * set.len(), 1), v(j + 2 * set.len(), 2), 0.5],
+                r: [0.0; 3],
+            })
+            .collect();
+        let basis: Vec<[f64; 3]> = (0..set.len()).map(|j| [v(j, 1), 0.3, v(j, 2)]).collect();
+        let range = 0..set.len();
+        for basis in [None, Some(basis)] {
+            for masking in [Masking::Separable, Masking::HeightCorrelated] {
+                let g = GramInput {
+                    set: &set,
+                    cache: &cache,
+                    basis: &basis,
+                    masking,
+                };
+                let bits = |a: [f64; crate::solver::updates::SIZE]| a.map(f64::to_bits);
+                // SAFETY (each call): AVX2 was detected.
+                let want = scalar::<1>(g, range.clone());
+                assert_eq!(
+                    bits(unsafe { gram_sums::<1>(g, range.clone()) }),
+                    bits(want)
+                );
+                let want = scalar::<2>(g, range.clone());
+                assert_eq!(
+                    bits(unsafe { gram_sums::<2>(g, range.clone()) }),
+                    bits(want)
+                );
+                let want = scalar::<3>(g, range.clone());
+                assert_eq!(
+                    bits(unsafe { gram_sums::<3>(g, range.clone()) }),
+                    bits(want)
+                );
+                assert!(want.iter().any(|&x| x != 0.0));
+            }
         }
     }
 }

@@ -129,7 +129,7 @@ pub(crate) fn apply_entry(x: &mut GWork, u: crate::grid::Weight, v: crate::grid:
 /// Per-sample state of one lobe's G pass, packed so the per-point loops
 /// touch 32 bytes per sample: G(theta_i), G(theta_o), S_r, S_a.
 #[derive(Clone, Copy, Default)]
-#[repr(C)] // one 32-byte row for the vector kernels (g_avx)
+#[repr(C)] // one 32-byte row for the vector kernels (solver::avx)
 pub(crate) struct GWork {
     pub(crate) gi: f64,
     pub(crate) go: f64,
@@ -210,7 +210,7 @@ pub(crate) fn update_g(
     let inc = &set.g_inc;
     let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
     // The same sums and steps in AVX registers where available (bit-identical).
-    let avx = super::g_avx::available();
+    let avx = super::avx::available();
     for k in 0..inc.has_data.len() {
         if !inc.has_data[k] {
             continue;
@@ -224,7 +224,7 @@ pub(crate) fn update_g(
             #[cfg(target_arch = "x86_64")]
             if avx {
                 // SAFETY: AVX2 was detected.
-                return unsafe { super::g_avx::cubic_sums(wv, sample, u, v) };
+                return unsafe { super::avx::cubic_sums(wv, sample, u, v) };
             }
             cubic_sums(wv, sample, u, v)
         });
@@ -253,7 +253,7 @@ pub(crate) fn update_g(
             if avx {
                 // SAFETY: AVX2 was detected; the rows are the work's, the
                 // samples distinct (as below) and this task's alone.
-                k = unsafe { super::g_avx::apply_step(shared.raw(), sample, u, v, t) };
+                k = unsafe { super::avx::apply_step(shared.raw(), sample, u, v, t) };
             }
             let (sample, u, v) = (&sample[k..], &u[k..], &v[k..]);
             for ((&j, &u), &v) in sample.iter().zip(u).zip(v) {

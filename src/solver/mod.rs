@@ -13,10 +13,10 @@
 //! parallel share no sample, so results are bit-for-bit identical for any
 //! number of threads.
 
+mod avx;
 pub mod diffuse;
 pub mod executor;
 pub mod g2_update;
-mod g_avx;
 pub mod g_update;
 pub mod gauge;
 pub mod gauss_newton;
