@@ -7,7 +7,7 @@
 
 use crate::baselines::{fit_ggx, GgxParams};
 use crate::coarse::CoarseError;
-use crate::metrics::{compare_model, Metrics};
+use crate::metrics::{compare_model, compare_model_table, Metrics};
 use crate::model::Layout;
 use crate::modelfile::FitInfo;
 use crate::samples::{round_to_i64, KeyMap, SampleError, SampleOptions, Weighting};
@@ -774,13 +774,9 @@ fn check_representable(samples: &MeasuredSamples) -> Result<(), FitError> {
 
 /// Refuse a result whose model or measures are not finite in f32 (such a
 /// model file could not be read back).
-fn check_result(
-    samples: &MeasuredSamples,
-    result: &FitResult,
-    metrics: &Metrics,
-) -> Result<(), FitError> {
+fn check_result(source: &str, result: &FitResult, metrics: &Metrics) -> Result<(), FitError> {
     let bad = |problem: String| FitError::Unrepresentable {
-        source_name: samples.source.clone(),
+        source_name: source.to_string(),
         problem,
     };
     if let Err(e) = result.model.validate() {
@@ -930,39 +926,48 @@ pub fn fit(
 ) -> Result<Fitted, FitError> {
     fit_measured(
         Cow::Borrowed(samples),
-        || Ok(Cow::Borrowed(samples)),
+        || Ok(Measured::Samples(samples)),
         config,
         observer,
     )
 }
 
 /// As [`fit`], but owning the samples: they are freed once the fit's sample
-/// sets are built, before its sweeps, and `remeasure` gives them again for
-/// the error measures after the fit (e.g. `|| Ok(table.samples(name))`,
-/// about 0.1 s for a MERL table, or a fresh read of the file, so that not
-/// even the table is held during the sweeps; its error is the fit's). The
-/// measured samples (88 MB for a MERL table) and the solver's caches are
-/// then never in memory together, which lowers the fit's peak memory by
-/// the samples' size.
+/// sets are built, before its sweeps, and `reread` gives their table again
+/// for the error measures after the fit (e.g. a fresh read of the file, so
+/// that not even the table is held during the sweeps; its error is the
+/// fit's). The measures visit the table's samples piece by piece
+/// ([`npf_data_loaders::Table::map_sample_chunks`]), so the measured samples
+/// (128 MB for a MERL table) are made once, and never in memory together
+/// with the solver's caches. `reread` must give the table `samples` came
+/// from (`table.samples(..)` is `samples`).
 pub fn fit_owned(
     samples: MeasuredSamples,
-    remeasure: impl FnOnce() -> Result<MeasuredSamples, FitError> + Send,
+    reread: impl FnOnce() -> Result<npf_data_loaders::Table, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
     fit_measured(
         Cow::Owned(samples),
-        || remeasure().map(Cow::Owned),
+        || reread().map(Measured::Table),
         config,
         observer,
     )
 }
 
+/// What a fit's error measures are computed against.
+enum Measured<'a> {
+    /// The samples themselves.
+    Samples(&'a MeasuredSamples),
+    /// Their table (its samples made piece by piece).
+    Table(npf_data_loaders::Table),
+}
+
 /// [`fit`] and [`fit_owned`]: `samples` go into the fit, `remeasure` gives
-/// the same samples for the error measures.
+/// the same samples (or their table) for the error measures.
 fn fit_measured<'a>(
     samples: Cow<'a, MeasuredSamples>,
-    remeasure: impl FnOnce() -> Result<Cow<'a, MeasuredSamples>, FitError> + Send,
+    remeasure: impl FnOnce() -> Result<Measured<'a>, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
@@ -975,6 +980,7 @@ fn fit_measured<'a>(
             source,
         })?;
     let threads = pool.current_num_threads();
+    let (source, isotropic) = (samples.source.clone(), samples.isotropic);
     pool.install(|| {
         let Produced {
             result,
@@ -986,13 +992,18 @@ fn fit_measured<'a>(
         // samples are made again.
         crate::memory::release_free();
         crate::phases::mark("release");
-        let samples = remeasure()?;
-        let metrics = compare_model(&samples, config.max_theta, &result.model);
+        let metrics = match remeasure()? {
+            Measured::Samples(s) => compare_model(s, config.max_theta, &result.model),
+            Measured::Table(t) => {
+                crate::phases::mark("re-read");
+                compare_model_table(&t, config.max_theta, &result.model)
+            }
+        };
         crate::phases::mark("error measures");
-        check_result(&samples, &result, &metrics)?;
+        check_result(&source, &result, &metrics)?;
         let kind = config.model;
         let info = FitInfo {
-            source: samples.source.clone(),
+            source,
             npf_version: env!("CARGO_PKG_VERSION").into(),
             lobes: if kind == ModelKind::Factor {
                 config.lobes
@@ -1029,7 +1040,7 @@ fn fit_measured<'a>(
                 if config.weighting == Weighting::Compressive {
                     v["floor"] = serde_json::to_value(floor).unwrap_or_default();
                     // The pooling this table got (the untrusted rule may raise it).
-                    match config.pool_scale_below_for(&floor, samples.isotropic) {
+                    match config.pool_scale_below_for(&floor, isotropic) {
                         Some(p) => v["pool_scale_below_deg"] = p.into(),
                         None => {
                             if let Some(m) = v.as_object_mut() {

@@ -9,7 +9,7 @@
 
 use crate::model::Model;
 use npf_data_loaders::geometry::Angles;
-use npf_data_loaders::MeasuredSamples;
+use npf_data_loaders::{MeasuredSample, MeasuredSamples, Table};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -53,6 +53,10 @@ pub(crate) struct Sums {
     pub peak: f64,
 }
 
+/// Samples per piece of the measures' pass: the sums' order, hence their
+/// last bits, depend on it, so every pass uses this one.
+const PIECE: usize = 8192;
+
 /// One deterministic pass (fixed chunks, summed in order) over the samples
 /// within the cut-off.
 pub(crate) fn sums(
@@ -61,38 +65,59 @@ pub(crate) fn sums(
     model: impl Fn(&Angles) -> [f64; 3] + Sync,
 ) -> Sums {
     let cut = max_theta_deg.to_radians();
-    samples
-        .samples
-        .par_chunks(8192)
-        .map(|chunk| {
-            let mut acc = Sums::default();
-            for s in chunk {
-                let a = &s.angles;
-                if a.theta_i > cut || a.theta_o > cut {
-                    continue;
-                }
-                let ci = a.theta_i.cos();
-                let v = model(a);
-                for c in 0..3 {
-                    let e = (v[c] - s.rgb[c]) * ci;
-                    acc.sq_err += e * e;
-                    acc.sq_ref += (s.rgb[c] * ci).powi(2);
-                    acc.sq_log += ((v[c] * ci).ln_1p() - (s.rgb[c] * ci).ln_1p()).powi(2);
-                    acc.peak = acc.peak.max(s.rgb[c] * ci);
-                }
-                acc.count += 1;
-            }
-            acc
-        })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold(Sums::default(), |a, b| Sums {
-            sq_err: a.sq_err + b.sq_err,
-            sq_ref: a.sq_ref + b.sq_ref,
-            sq_log: a.sq_log + b.sq_log,
-            count: a.count + b.count,
-            peak: a.peak.max(b.peak),
-        })
+    in_order(
+        samples
+            .samples
+            .par_chunks(PIECE)
+            .map(|piece| piece_sums(piece, cut, &model))
+            .collect(),
+    )
+}
+
+/// [`sums`] over a table's samples, made piece by piece and never all held
+/// ([`Table::map_sample_chunks`]): the same pieces in the same order as
+/// [`sums`] of `table.samples(..)`, so the same bits.
+pub(crate) fn table_sums(
+    table: &Table,
+    max_theta_deg: f64,
+    model: impl Fn(&Angles) -> [f64; 3] + Sync,
+) -> Sums {
+    let cut = max_theta_deg.to_radians();
+    in_order(table.map_sample_chunks(PIECE, |piece| piece_sums(piece, cut, &model)))
+}
+
+/// The sums of one piece of samples, in sample order.
+#[inline]
+fn piece_sums(piece: &[MeasuredSample], cut: f64, model: &impl Fn(&Angles) -> [f64; 3]) -> Sums {
+    let mut acc = Sums::default();
+    for s in piece {
+        let a = &s.angles;
+        if a.theta_i > cut || a.theta_o > cut {
+            continue;
+        }
+        let ci = a.theta_i.cos();
+        let v = model(a);
+        for c in 0..3 {
+            let e = (v[c] - s.rgb[c]) * ci;
+            acc.sq_err += e * e;
+            acc.sq_ref += (s.rgb[c] * ci).powi(2);
+            acc.sq_log += ((v[c] * ci).ln_1p() - (s.rgb[c] * ci).ln_1p()).powi(2);
+            acc.peak = acc.peak.max(s.rgb[c] * ci);
+        }
+        acc.count += 1;
+    }
+    acc
+}
+
+/// The pieces' sums added in piece order.
+fn in_order(pieces: Vec<Sums>) -> Sums {
+    pieces.into_iter().fold(Sums::default(), |a, b| Sums {
+        sq_err: a.sq_err + b.sq_err,
+        sq_ref: a.sq_ref + b.sq_ref,
+        sq_log: a.sq_log + b.sq_log,
+        count: a.count + b.count,
+        peak: a.peak.max(b.peak),
+    })
 }
 
 impl Sums {
@@ -128,4 +153,10 @@ pub fn compare(
 /// The measures of a factor model ([`Model::eval_angles`]).
 pub fn compare_model(samples: &MeasuredSamples, max_theta_deg: f64, model: &Model) -> Metrics {
     compare(samples, max_theta_deg, |a| model.eval_angles(a))
+}
+
+/// [`compare_model`] against a table's samples without holding them all
+/// (the same numbers as on `table.samples(..)`).
+pub fn compare_model_table(table: &Table, max_theta_deg: f64, model: &Model) -> Metrics {
+    table_sums(table, max_theta_deg, |a| model.eval_angles(a)).metrics(max_theta_deg)
 }

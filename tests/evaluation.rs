@@ -8,8 +8,8 @@ use npf::baselines::{fit_ggx, ggx_table, independent_g_model, GgxParams};
 use npf::bsdf::{Bsdf, BsdfSample};
 use npf::evaluation::Reference;
 use npf::fit::{fit_model, FitConfig, ModelKind};
-use npf::loaders::{MeasuredSamples, MerlTable};
-use npf::metrics::compare_model;
+use npf::loaders::{MeasuredSamples, MerlTable, Table};
+use npf::metrics::{compare_model, compare_model_table};
 use npf::model::Layout;
 use npf::reconstruct::to_merl;
 use npf::render::{psnr, render, RenderOptions};
@@ -30,6 +30,29 @@ const SMALL: RenderOptions = RenderOptions {
     res: 24,
     n_theta: 8,
 };
+
+#[test]
+fn measures_against_a_table_are_those_against_its_samples() {
+    // A fit's record measures the table piece by piece (its samples never
+    // all held): the same numbers, to the bit, for any thread count.
+    let model = known_factor_model(Layout::default(), &[0.1, 0.4]);
+    let table = BRDF.table();
+    let samples = table.samples("ggx");
+    let want = compare_model(&samples, 85.0, &model);
+    assert!(want.samples > 100_000 && want.log_rmse > 0.0, "{want:?}");
+    let table = Table::Merl(table);
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let got = pool.install(|| compare_model_table(&table, 85.0, &model));
+        let bits =
+            |m: &npf::metrics::Metrics| [m.cos_rmse, m.rel_cos_rmse, m.log_rmse].map(f64::to_bits);
+        assert_eq!(got.samples, want.samples);
+        assert_eq!(bits(&got), bits(&want), "{threads} threads");
+    }
+}
 
 #[test]
 fn identical_inputs_have_zero_error_and_infinite_psnr() {

@@ -352,8 +352,9 @@ fn the_merged_set_keeps_the_unmerged_objective() {
     );
 }
 
-/// `fit::fit_owned` (the samples freed during the fit and made again for
-/// the error measures) gives `fit::fit`'s model, objective and measures.
+/// `fit::fit_owned` (the samples freed during the fit, their table read
+/// again for the error measures) gives `fit::fit`'s model, objective and
+/// measures.
 #[test]
 fn an_owned_fit_is_the_borrowed_fit() {
     let truth = known_factor_model(Layout::default(), &[0.05, 0.2, 0.5]);
@@ -365,8 +366,8 @@ fn an_owned_fit_is_the_borrowed_fit() {
     };
     let samples = table.samples("t");
     let a = npf::fit::fit(&samples, &config, &mut |_, _| {}).unwrap();
-    let b =
-        npf::fit::fit_owned(samples, || Ok(table.samples("t")), &config, &mut |_, _| {}).unwrap();
+    let again = || Ok(npf::loaders::Table::Merl(table.clone()));
+    let b = npf::fit::fit_owned(samples, again, &config, &mut |_, _| {}).unwrap();
     assert_eq!(a.result.objective.to_bits(), b.result.objective.to_bits());
     assert_eq!(a.result.model.params(), b.result.model.params());
     assert_eq!(a.metrics, b.metrics);

@@ -132,6 +132,25 @@ impl Table {
             Table::Utia(t) => t.samples(source),
         }
     }
+
+    /// `f` of each consecutive piece of `chunk` samples of [`Table::samples`]
+    /// (the last may be shorter), in piece order, computed in parallel. A
+    /// MERL table's samples are made piece by piece, never all held
+    /// ([`MerlTable::map_sample_chunks`]).
+    ///
+    /// # Panics
+    /// If `chunk` is 0.
+    pub fn map_sample_chunks<R: Send>(
+        &self,
+        chunk: usize,
+        f: impl Fn(&[crate::MeasuredSample]) -> R + Sync,
+    ) -> Vec<R> {
+        use rayon::prelude::*;
+        match self {
+            Table::Merl(t) => t.map_sample_chunks(chunk, f),
+            Table::Utia(t) => t.samples("").samples.par_chunks(chunk).map(&f).collect(),
+        }
+    }
 }
 
 #[cfg(test)]

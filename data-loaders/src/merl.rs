@@ -300,17 +300,7 @@ impl MerlTable {
         rows.into_par_iter().enumerate().for_each(|(i_th, row)| {
             let mut at = 0;
             let written = self.row_cells(&trig, i_th, |angles, rgb, wi, wo| {
-                // `Angles::from_half_diff`'s elevations and azimuths, from
-                // the directions already at hand.
-                let ((theta_i, phi_i), (theta_o, phi_o)) = (angles_of(wi), angles_of(wo));
-                let angles = Angles {
-                    theta_i,
-                    phi_i,
-                    theta_o,
-                    phi_o,
-                    ..angles
-                };
-                row[at].write(MeasuredSample { angles, rgb });
+                row[at].write(sample_of(angles, rgb, wi, wo));
                 at += 1;
             });
             assert_eq!(written, row.len(), "the two passes over a row disagree");
@@ -326,6 +316,69 @@ impl MerlTable {
         }
     }
 
+    /// The samples of [`MerlTable::samples`], the same values in the same
+    /// order, in consecutive pieces of `chunk` (the last may be shorter):
+    /// `f` of each piece, in piece order. The pieces are made and consumed
+    /// in parallel (rayon's current pool), one at a time per worker, so the
+    /// samples are never all held (a pass over them costs no 128 MB of
+    /// fresh memory); the result is the same for any thread count.
+    ///
+    /// # Panics
+    /// If `chunk` is 0.
+    pub fn map_sample_chunks<R: Send>(
+        &self,
+        chunk: usize,
+        f: impl Fn(&[MeasuredSample]) -> R + Sync,
+    ) -> Vec<R> {
+        use rayon::prelude::*;
+        assert!(chunk > 0, "pieces of at least one sample");
+        let trig = NodeTrig::new();
+        // Each row's sample cells (i_td * 180 + i_pd, below 2^16).
+        let rows: Vec<Vec<u16>> = (0..Self::RES_THETA_H)
+            .into_par_iter()
+            .map(|i_th| {
+                let mut cells = Vec::new();
+                self.row_cells_at(
+                    &trig,
+                    i_th,
+                    0..Self::RES_THETA_D * Self::RES_PHI_D,
+                    |at, _, _, _, _| cells.push(at as u16),
+                );
+                cells
+            })
+            .collect();
+        let mut starts = Vec::with_capacity(rows.len() + 1);
+        starts.push(0);
+        for r in &rows {
+            starts.push(starts.last().copied().unwrap_or(0) + r.len());
+        }
+        let total = starts[rows.len()];
+        (0..total.div_ceil(chunk))
+            .into_par_iter()
+            .map_init(
+                || Vec::with_capacity(chunk),
+                |piece: &mut Vec<MeasuredSample>, c| {
+                    piece.clear();
+                    let (lo, hi) = (c * chunk, (c * chunk + chunk).min(total));
+                    // The row holding sample `lo`, then rows until `hi`.
+                    let mut i_th = starts.partition_point(|&s| s <= lo) - 1;
+                    let mut from = lo - starts[i_th];
+                    while piece.len() < hi - lo {
+                        let want = (hi - lo - piece.len()).min(rows[i_th].len() - from);
+                        for &at in &rows[i_th][from..from + want] {
+                            let at = at as usize;
+                            self.row_cells_at(&trig, i_th, at..at + 1, |_, angles, rgb, wi, wo| {
+                                piece.push(sample_of(angles, rgb, wi, wo))
+                            });
+                        }
+                        (i_th, from) = (i_th + 1, 0);
+                    }
+                    f(piece)
+                },
+            )
+            .collect()
+    }
+
     /// Calls `sample(angles, rgb, wi, wo)` for each valid, above-horizon cell
     /// of θh row `i_th` in cell order (`angles` holds the half/difference
     /// angles only) and returns how many there were.
@@ -337,39 +390,72 @@ impl MerlTable {
         mut sample: impl FnMut(Angles, [f64; 3], [f64; 3], [f64; 3]),
     ) -> usize {
         let mut n = 0;
-        let sc_th = trig.theta_h[i_th];
-        let sc_0 = trig.zero;
-        for i_td in 0..Self::RES_THETA_D {
-            for i_pd in 0..Self::RES_PHI_D {
-                let index = Self::index(i_th, i_td, i_pd);
-                // As [`MerlTable::cell`]: missing if any channel is negative.
-                if (0..3).any(|c| self.raw[c * Self::CELLS + index] < 0.0) {
-                    continue;
-                }
-                let (wi, wo) =
-                    directions_from_half_diff_sc(sc_th, sc_0, trig.theta_d[i_td], trig.phi_d[i_pd]);
-                if wi[2] <= 0.0 || wo[2] <= 0.0 {
-                    continue;
-                }
-                let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
-                let rgb =
-                    std::array::from_fn(|c| self.raw[c * Self::CELLS + index] * Self::SCALE[c]);
-                let angles = Angles {
-                    theta_h: th,
-                    phi_h: 0.0,
-                    theta_d: td,
-                    phi_d: pd,
-                    theta_i: 0.0,
-                    phi_i: 0.0,
-                    theta_o: 0.0,
-                    phi_o: 0.0,
-                };
+        self.row_cells_at(
+            trig,
+            i_th,
+            0..Self::RES_THETA_D * Self::RES_PHI_D,
+            |_, angles, rgb, wi, wo| {
                 sample(angles, rgb, wi, wo);
                 n += 1;
-            }
-        }
+            },
+        );
         n
     }
+
+    /// [`MerlTable::row_cells`] over the cells `cells` of the row only
+    /// (numbered i_td * 180 + i_pd), each sample's number passed first.
+    #[inline(always)]
+    fn row_cells_at(
+        &self,
+        trig: &NodeTrig,
+        i_th: usize,
+        cells: std::ops::Range<usize>,
+        mut sample: impl FnMut(usize, Angles, [f64; 3], [f64; 3], [f64; 3]),
+    ) {
+        let sc_th = trig.theta_h[i_th];
+        let sc_0 = trig.zero;
+        for at in cells {
+            let (i_td, i_pd) = (at / Self::RES_PHI_D, at % Self::RES_PHI_D);
+            let index = Self::index(i_th, i_td, i_pd);
+            // As [`MerlTable::cell`]: missing if any channel is negative.
+            if (0..3).any(|c| self.raw[c * Self::CELLS + index] < 0.0) {
+                continue;
+            }
+            let (wi, wo) =
+                directions_from_half_diff_sc(sc_th, sc_0, trig.theta_d[i_td], trig.phi_d[i_pd]);
+            if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                continue;
+            }
+            let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
+            let rgb = std::array::from_fn(|c| self.raw[c * Self::CELLS + index] * Self::SCALE[c]);
+            let angles = Angles {
+                theta_h: th,
+                phi_h: 0.0,
+                theta_d: td,
+                phi_d: pd,
+                theta_i: 0.0,
+                phi_i: 0.0,
+                theta_o: 0.0,
+                phi_o: 0.0,
+            };
+            sample(at, angles, rgb, wi, wo);
+        }
+    }
+}
+
+/// A sample from `row_cells`' arguments: `Angles::from_half_diff`'s
+/// elevations and azimuths, from the directions already at hand.
+#[inline(always)]
+fn sample_of(angles: Angles, rgb: [f64; 3], wi: [f64; 3], wo: [f64; 3]) -> MeasuredSample {
+    let ((theta_i, phi_i), (theta_o, phi_o)) = (angles_of(wi), angles_of(wo));
+    let angles = Angles {
+        theta_i,
+        phi_i,
+        theta_o,
+        phi_o,
+        ..angles
+    };
+    MeasuredSample { angles, rgb }
 }
 
 /// (sin, cos) of every node angle of the MERL grid (and of φh = 0).
@@ -465,6 +551,29 @@ mod tests {
             assert_eq!(got.missing, missing);
             assert_eq!(got.samples.len() + got.missing, MerlTable::CELLS);
             assert!(got.samples == expected, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn sample_pieces_are_the_samples_in_order_for_any_thread_count() {
+        let table = MerlTable::from_fn(|th, td, pd| {
+            ((2.0 * th + td - pd).cos() > -0.7).then_some([th, td + 0.5, pd + 1.0])
+        });
+        let all = table.samples("t").samples;
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            for chunk in [1000, 8192, 20_000, 2 * MerlTable::CELLS] {
+                let pieces = pool.install(|| table.map_sample_chunks(chunk, |p| p.to_vec()));
+                assert_eq!(pieces.len(), all.len().div_ceil(chunk));
+                assert!(pieces.iter().rev().skip(1).all(|p| p.len() == chunk));
+                assert!(
+                    pieces.concat() == all,
+                    "{threads} threads, pieces of {chunk}"
+                );
+            }
         }
     }
 

@@ -416,7 +416,8 @@ pub(super) fn fit_table(
         (None, None) => {
             // Neither the samples nor the table are held during the sweeps
             // (the fit's peak memory): the table is read again for the
-            // error measures, and refused if the file changed meanwhile.
+            // error measures (its samples made piece by piece, not all
+            // held), and refused if the file changed meanwhile.
             let source = samples.source.clone();
             let stamp = file_stamp(input);
             drop(table);
@@ -428,10 +429,8 @@ pub(super) fn fit_table(
                 if file_stamp(input) != stamp {
                     return Err(changed("the input changed during the fit".into()));
                 }
-                let (_, again) = super::read_measured(input, args.format)
-                    .map_err(|e| changed(format!("reading it again: {e}")))?;
-                crate::phases::mark("re-read + samples");
-                Ok(again)
+                npf_data_loaders::Table::read(input, args.format.map(Into::into))
+                    .map_err(|e| changed(format!("reading it again: {e}")))
             };
             let (bar, mut observer) = progress(config, verbose);
             let fitted = crate::fit::fit_owned(samples, reread, config, &mut observer)?;

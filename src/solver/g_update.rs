@@ -71,7 +71,12 @@ pub fn best_golden_step(c: &[f64; 4], x: f64, hi: f64) -> f64 {
 /// notes), added to `acc`; a function, not a closure, so it is inlined
 /// into the tight per-point loop.
 #[inline(always)]
-fn cubic_terms(x: &GWork, u: crate::grid::Weight, v: crate::grid::Weight, acc: &mut [f64; 4]) {
+pub(crate) fn cubic_terms(
+    x: &GWork,
+    u: crate::grid::Weight,
+    v: crate::grid::Weight,
+    acc: &mut [f64; 4],
+) {
     let (u, v) = (f64::from(u), f64::from(v));
     let p1 = x.gi * v + x.go * u;
     let p2 = u * v;
@@ -81,9 +86,50 @@ fn cubic_terms(x: &GWork, u: crate::grid::Weight, v: crate::grid::Weight, acc: &
     acc[3] += x.sa * p2 * p2;
 }
 
+/// The quartic's coefficient sums over one chunk's entries `(sample, u, v)`.
+#[inline(always)]
+pub(crate) fn cubic_sums(
+    wv: &[GWork],
+    sample: &[u32],
+    u: &[crate::grid::Weight],
+    v: &[crate::grid::Weight],
+) -> [f64; 4] {
+    // Even and odd entries in separate sums: each sum is a chain of
+    // dependent additions, so one chain would wait on the adder's latency,
+    // two overlap (a fixed order, so still the same result for any thread
+    // count).
+    let (mut even, mut odd) = ([0.0; 4], [0.0; 4]);
+    let pairs = sample
+        .chunks_exact(2)
+        .zip(u.chunks_exact(2))
+        .zip(v.chunks_exact(2));
+    for ((s, u), v) in pairs {
+        cubic_terms(&wv[s[0] as usize], u[0], v[0], &mut even);
+        cubic_terms(&wv[s[1] as usize], u[1], v[1], &mut odd);
+    }
+    if sample.len() % 2 == 1 {
+        let e = sample.len() - 1;
+        cubic_terms(&wv[sample[e] as usize], u[e], v[e], &mut even);
+    }
+    std::array::from_fn(|i| even[i] + odd[i])
+}
+
+/// The step `t` of a control point applied to one of its entries: the
+/// sample's G values and S_r move with it.
+#[inline(always)]
+pub(crate) fn apply_entry(x: &mut GWork, u: crate::grid::Weight, v: crate::grid::Weight, t: f64) {
+    let (u, v) = (f64::from(u), f64::from(v));
+    let p1 = x.gi * v + x.go * u;
+    let p2 = u * v;
+    x.sr += x.sa * (p1 * t + p2 * t * t);
+    x.gi += u * t;
+    x.go += v * t;
+}
+
 /// Per-sample state of one lobe's G pass, packed so the per-point loops
 /// touch 32 bytes per sample: G(theta_i), G(theta_o), S_r, S_a.
 #[derive(Clone, Copy, Default)]
+#[repr(C)] // one 32-byte row for the vector kernels (solver::avx)
 pub(crate) struct GWork {
     pub(crate) gi: f64,
     pub(crate) go: f64,
@@ -104,6 +150,10 @@ impl<'a, T> Disjoint<'a, T> {
     #[allow(clippy::mut_from_ref)]
     unsafe fn get(&self, i: usize) -> &mut T {
         &mut *self.0[i].get()
+    }
+    /// The first element and the length, for the vector kernels.
+    fn raw(&self) -> (*mut T, usize) {
+        (self.0.as_ptr() as *mut T, self.0.len())
     }
 }
 
@@ -159,6 +209,8 @@ pub(crate) fn update_g(
     }
     let inc = &set.g_inc;
     let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
+    // The same sums and steps in AVX registers where available (bit-identical).
+    let avx = super::avx::available();
     for k in 0..inc.has_data.len() {
         if !inc.has_data[k] {
             continue;
@@ -166,27 +218,15 @@ pub(crate) fn update_g(
         let range = inc.entries(k);
         let wv = &work[..];
         let c = chunked_sum(range.len(), |r| {
-            // Even and odd entries in separate sums: each sum is a chain
-            // of dependent additions, so one chain would wait on the
-            // adder's latency, two overlap (a fixed order, so still the
-            // same result for any thread count).
-            let (mut even, mut odd) = ([0.0; 4], [0.0; 4]);
             let (lo, hi) = (range.start + r.start, range.start + r.end);
             // Slices of the chunk (no per-entry bounds checks on the lists).
             let (sample, u, v) = (&inc.sample[lo..hi], &inc.u[lo..hi], &inc.v[lo..hi]);
-            let pairs = sample
-                .chunks_exact(2)
-                .zip(u.chunks_exact(2))
-                .zip(v.chunks_exact(2));
-            for ((s, u), v) in pairs {
-                cubic_terms(&wv[s[0] as usize], u[0], v[0], &mut even);
-                cubic_terms(&wv[s[1] as usize], u[1], v[1], &mut odd);
+            #[cfg(target_arch = "x86_64")]
+            if avx {
+                // SAFETY: AVX2 was detected.
+                return unsafe { super::avx::cubic_sums(wv, sample, u, v) };
             }
-            if sample.len() % 2 == 1 {
-                let e = sample.len() - 1;
-                cubic_terms(&wv[sample[e] as usize], u[e], v[e], &mut even);
-            }
-            std::array::from_fn(|i| even[i] + odd[i])
+            cubic_sums(wv, sample, u, v)
         });
         let x = st.factors.g[m][k];
         let t = match method {
@@ -207,15 +247,18 @@ pub(crate) fn update_g(
         let shared = Disjoint::new(&mut work[..]);
         let apply = |lo: usize, hi: usize| {
             let (sample, u, v) = (&inc.sample[lo..hi], &inc.u[lo..hi], &inc.v[lo..hi]);
+            #[allow(unused_mut)]
+            let mut k = 0;
+            #[cfg(target_arch = "x86_64")]
+            if avx {
+                // SAFETY: AVX2 was detected; the rows are the work's, the
+                // samples distinct (as below) and this task's alone.
+                k = unsafe { super::avx::apply_step(shared.raw(), sample, u, v, t) };
+            }
+            let (sample, u, v) = (&sample[k..], &u[k..], &v[k..]);
             for ((&j, &u), &v) in sample.iter().zip(u).zip(v) {
                 // SAFETY: distinct samples within one point's list (see GIncidence::build).
-                let x = unsafe { shared.get(j as usize) };
-                let (u, v) = (f64::from(u), f64::from(v));
-                let p1 = x.gi * v + x.go * u;
-                let p2 = u * v;
-                x.sr += x.sa * (p1 * t + p2 * t * t);
-                x.gi += u * t;
-                x.go += v * t;
+                apply_entry(unsafe { shared.get(j as usize) }, u, v, t);
             }
         };
         let chunks = range.len().div_ceil(CHUNK);

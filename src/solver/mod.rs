@@ -13,6 +13,7 @@
 //! parallel share no sample, so results are bit-for-bit identical for any
 //! number of threads.
 
+mod avx;
 pub mod diffuse;
 pub mod executor;
 pub mod g2_update;

@@ -236,8 +236,8 @@ pub(crate) fn update_diffuse_and_scales(
 }
 
 /// Basis functions of the (d, s) solve at most, and its sums' count.
-const MAXK: usize = MAX_LOBES + 1;
-const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
+pub(crate) const MAXK: usize = MAX_LOBES + 1;
+pub(crate) const SIZE: usize = 3 * (MAXK * MAXK + MAXK);
 
 /// [`update_diffuse_and_scales`] without the residuals' recomputation: the
 /// caller must recompute them (e.g. fused with the gauge's rescaling).
@@ -249,49 +249,30 @@ pub(crate) fn solve_diffuse_and_scales(
     let lobes = st.factors.lobes();
     let k = lobes + 1;
     // Gram matrix and right-hand side per channel: basis b_0 = the diffuse factor, b_m = F D G G/(cc).
-    let cache = &st.cache;
-    let basis = &st.basis;
-    let masking = st.factors.masking;
+    let g = GramInput {
+        set,
+        cache: &st.cache,
+        basis: &st.basis,
+        masking: st.factors.masking,
+    };
     // The per-sample loop for a lobe count known at compile time (unrolled
     // loops over the Gram matrix; the same arithmetic in the same order).
-    fn sums_for<const LOBES: usize>(
-        set: &FitSet,
-        cache: &[Cache],
-        basis: &Option<Vec<[f64; 3]>>,
-        masking: crate::model::Masking,
-    ) -> [f64; SIZE] {
-        let k = LOBES + 1;
-        chunked_sum(set.len(), |range| {
-            let mut acc = [0.0; SIZE];
-            for j in range {
-                let c = &cache[j];
-                let p: [f64; LOBES] =
-                    std::array::from_fn(|m| c.lobe_product(m, set.inv_cc[j], masking));
-                for ch in 0..3 {
-                    let mut b = [0.0; MAXK];
-                    b[0] = basis_at(basis, j, ch);
-                    for m in 0..LOBES {
-                        b[m + 1] = c.fv[ch] * p[m];
-                    }
-                    let w = set.w[j][ch];
-                    let y = set.y[j][ch];
-                    let base = ch * (MAXK * MAXK + MAXK);
-                    for a in 0..k {
-                        let wb = w * b[a];
-                        for bb in a..k {
-                            acc[base + a * MAXK + bb] += wb * b[bb];
-                        }
-                        acc[base + MAXK * MAXK + a] += wb * y;
-                    }
-                }
+    fn sums_for<const LOBES: usize>(g: GramInput) -> [f64; SIZE] {
+        // The same sums in AVX registers where available (bit-identical).
+        let avx = super::avx::available();
+        chunked_sum(g.set.len(), |range| {
+            #[cfg(target_arch = "x86_64")]
+            if avx {
+                // SAFETY: AVX2 was detected.
+                return unsafe { super::avx::gram_sums::<LOBES>(g, range) };
             }
-            acc
+            gram_sums::<LOBES>(g, range)
         })
     }
     let sums: [f64; SIZE] = match lobes {
-        1 => sums_for::<1>(set, cache, basis, masking),
-        2 => sums_for::<2>(set, cache, basis, masking),
-        _ => sums_for::<MAX_LOBES>(set, cache, basis, masking),
+        1 => sums_for::<1>(g),
+        2 => sums_for::<2>(g),
+        _ => sums_for::<MAX_LOBES>(g),
     };
     for ch in 0..3 {
         let base = ch * (MAXK * MAXK + MAXK);
@@ -326,6 +307,59 @@ pub(crate) fn solve_diffuse_and_scales(
             }
         }
     }
+}
+
+/// What the (d, s) solve's sums read.
+#[derive(Clone, Copy)]
+pub(crate) struct GramInput<'a> {
+    pub set: &'a FitSet,
+    pub cache: &'a [Cache],
+    pub basis: &'a Option<Vec<[f64; 3]>>,
+    pub masking: crate::model::Masking,
+}
+
+impl GramInput<'_> {
+    /// Sample j's basis values per channel (b_0 the diffuse factor, b_m =
+    /// F D G G / (cos cos) of lobe m, 0 past the lobes), weight and value.
+    #[inline(always)]
+    pub(crate) fn sample<const LOBES: usize>(&self, j: usize) -> [([f64; MAXK], f64, f64); 3] {
+        let c = &self.cache[j];
+        let p: [f64; LOBES] =
+            std::array::from_fn(|m| c.lobe_product(m, self.set.inv_cc[j], self.masking));
+        std::array::from_fn(|ch| {
+            let mut b = [0.0; MAXK];
+            b[0] = basis_at(self.basis, j, ch);
+            for m in 0..LOBES {
+                b[m + 1] = c.fv[ch] * p[m];
+            }
+            (b, self.set.w[j][ch], self.set.y[j][ch])
+        })
+    }
+}
+
+/// The (d, s) solve's Gram and right-hand-side sums of the samples in
+/// `range`: per channel, the upper triangle of sum w b_a b_b at
+/// `ch * (MAXK * MAXK + MAXK) + a * MAXK + b` (a <= b), then sum w b_a y.
+#[inline(always)]
+pub(crate) fn gram_sums<const LOBES: usize>(
+    g: GramInput,
+    range: std::ops::Range<usize>,
+) -> [f64; SIZE] {
+    let k = LOBES + 1;
+    let mut acc = [0.0; SIZE];
+    for j in range {
+        for (ch, (b, w, y)) in g.sample::<LOBES>(j).into_iter().enumerate() {
+            let base = ch * (MAXK * MAXK + MAXK);
+            for a in 0..k {
+                let wb = w * b[a];
+                for bb in a..k {
+                    acc[base + a * MAXK + bb] += wb * b[bb];
+                }
+                acc[base + MAXK * MAXK + a] += wb * y;
+            }
+        }
+    }
+    acc
 }
 
 /// r = model - data of every sample from the factors and the cached factor
