@@ -13,25 +13,18 @@
 //! - The (d, s) solve's Gram sums ([`super::updates`]): one row of the
 //!   4 x 4 Gram matrix (3 lobes and the diffuse basis) per register.
 
-use super::g_update::GWork;
-use crate::grid::Weight;
-
-/// Whether the kernels below may run here.
+/// Whether the kernels below may run here (the callers' scalar loops are
+/// the only path on other architectures).
+#[cfg(target_arch = "x86_64")]
 #[inline]
 pub(crate) fn available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    std::is_x86_feature_detected!("avx2")
 }
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{GWork, Weight};
+    use crate::grid::Weight;
+    use crate::solver::g_update::GWork;
     use crate::solver::g_update::cubic_terms;
     use crate::solver::updates::{GramInput, MAXK, SIZE};
     use std::arch::x86_64::*;
@@ -218,7 +211,8 @@ pub(crate) use x86::{apply_step, cubic_sums, gram_sums};
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
-    use crate::solver::g_update::{apply_entry, cubic_sums as scalar_sums};
+    use crate::grid::Weight;
+    use crate::solver::g_update::{apply_entry, cubic_sums as scalar_sums, GWork};
 
     /// Rows, weights and a scrambled list of distinct samples from a fixed
     /// generator (values over many magnitudes, some zero).

@@ -152,6 +152,7 @@ impl<'a, T> Disjoint<'a, T> {
         &mut *self.0[i].get()
     }
     /// The first element and the length, for the vector kernels.
+    #[cfg(target_arch = "x86_64")]
     fn raw(&self) -> (*mut T, usize) {
         (self.0.as_ptr() as *mut T, self.0.len())
     }
@@ -210,6 +211,7 @@ pub(crate) fn update_g(
     let inc = &set.g_inc;
     let golden_hi = 2.0 * st.factors.g[m].iter().cloned().fold(1.0, f64::max);
     // The same sums and steps in AVX registers where available (bit-identical).
+    #[cfg(target_arch = "x86_64")]
     let avx = super::avx::available();
     for k in 0..inc.has_data.len() {
         if !inc.has_data[k] {

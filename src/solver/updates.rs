@@ -259,6 +259,7 @@ pub(crate) fn solve_diffuse_and_scales(
     // loops over the Gram matrix; the same arithmetic in the same order).
     fn sums_for<const LOBES: usize>(g: GramInput) -> [f64; SIZE] {
         // The same sums in AVX registers where available (bit-identical).
+        #[cfg(target_arch = "x86_64")]
         let avx = super::avx::available();
         chunked_sum(g.set.len(), |range| {
             #[cfg(target_arch = "x86_64")]
