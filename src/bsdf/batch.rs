@@ -391,13 +391,7 @@ mod tests {
         let b = NpfBxdf::new(model).unwrap();
         let flat = b.flat().expect("a flat model");
         let n = 1023;
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::bsdf::test_uniforms(0x2545_f491_4f6c_dd1du64);
         let mut wo: [Vec<f64>; 3] = Default::default();
         let mut u: [Vec<f64>; 3] = Default::default();
         for j in 0..n {

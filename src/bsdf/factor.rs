@@ -1513,13 +1513,7 @@ mod tests {
     /// include the normal, grazing and invalid ones and random numbers
     /// at and outside [0, 1].
     fn check_draw4<V: Lanes4>(b: &NpfBxdf) -> usize {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::bsdf::test_uniforms(0x9e37_79b9_7f4a_7c15u64);
         let odd = [0.0, 1.0, 1.0 - 1e-17, 0.5, f64::NAN, -0.25, 2.0];
         let (mut drawn, mut n) = (0, 0);
         while n < 20_000 {

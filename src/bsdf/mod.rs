@@ -298,3 +298,16 @@ pub fn half_vector_quadrature(
             t
         })
 }
+
+/// Uniform numbers in [0, 1) from a xorshift generator seeded with `seed`
+/// (non-zero): the unit tests' fixed, dependency-free random stream.
+#[cfg(test)]
+pub(crate) fn test_uniforms(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

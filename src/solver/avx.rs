@@ -24,8 +24,8 @@ pub(crate) fn available() -> bool {
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use crate::grid::Weight;
-    use crate::solver::g_update::GWork;
     use crate::solver::g_update::cubic_terms;
+    use crate::solver::g_update::GWork;
     use crate::solver::updates::{GramInput, MAXK, SIZE};
     use std::arch::x86_64::*;
 
