@@ -175,6 +175,8 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
         factors: &s.coarse,
         tol: s.coarse_tol,
         max_sweeps: s.coarse_max_sweeps,
+        // As `npf fit` on an isotropic table.
+        keep_g: FitConfig::default().keep_coarse_g.unwrap_or(true),
     };
     // Owned: the samples are freed before the full set's sweeps (as in
     // `npf fit`) and made again from the table for the error measures.

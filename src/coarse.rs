@@ -12,8 +12,8 @@
 //! own, smaller scale and are not in the history.
 
 use crate::model::Layout;
-use crate::samples::{FitSet, SampleError, SampleOptions};
-use crate::solver::{Executor, Factors, FitOptions, FitResult, Observer, SolverError};
+use crate::samples::{FitSet, GUse, SampleError, SampleOptions};
+use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, Observer, SolverError};
 use npf_data_loaders::MeasuredSamples;
 use std::borrow::Cow;
 
@@ -85,6 +85,12 @@ pub struct Schedule<'a> {
     pub tol: f64,
     /// The levels' sweep limit (the full set keeps the fit's own).
     pub max_sweeps: usize,
+    /// Hold G on the full set where the decimated levels fitted it (when
+    /// at least one level runs). G is smooth (a few Catmull-Rom points per
+    /// lobe), so a 32nd of the samples pins it down; D's narrow peaks are
+    /// what needs them all. The G pass is half a full sweep's time
+    /// (BENCHMARKS.md, issue 15, "G from the coarse level").
+    pub keep_g: bool,
 }
 
 /// A coarse-to-fine fit's result.
@@ -121,9 +127,19 @@ pub fn fit(
     observer: &mut dyn Observer,
 ) -> Result<CoarseFit, CoarseError> {
     let t0 = std::time::Instant::now();
+    let keep_g = schedule.keep_g && levels_run(&samples, layout, schedule, opts.lobes);
+    let (opts_full, g_use) = if keep_g {
+        let fixed = FitOptions {
+            g_method: GMethod::Fixed,
+            ..opts
+        };
+        (fixed, GUse::Fixed)
+    } else {
+        (opts, GUse::Updated)
+    };
     let (set, coarse) = rayon::join(
         || {
-            let set = FitSet::build(&samples, layout, so);
+            let set = FitSet::build_for(&samples, layout, so, g_use);
             (set, t0.elapsed().as_secs_f64())
         },
         || levels_fit(&samples, (layout, so), schedule, opts, start),
@@ -134,7 +150,7 @@ pub fn fit(
     // The decimated levels' sets and the build's temporaries are freed:
     // give their pages back before the full set's caches are allocated.
     crate::memory::release_free();
-    let result = Executor::new(&set, opts)
+    let result = Executor::new(&set, opts_full)
         .start_from(start)
         .observe(observer)
         .run()?;
@@ -174,6 +190,18 @@ fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
         history.len(),
         split.join(", ")
     );
+}
+
+/// Whether any decimated level of `schedule` will run (the count
+/// [`levels_fit`] tests, without building the decimated samples).
+fn levels_run(samples: &MeasuredSamples, layout: Layout, schedule: Schedule, lobes: usize) -> bool {
+    let least = MIN_SAMPLES_PER_PARAMETER * layout.param_count(lobes);
+    schedule.factors.iter().filter(|&&f| f > 1).any(|&factor| {
+        let kept = (0..samples.samples.len())
+            .filter(|&i| mix(i as u64) % factor as u64 == 0)
+            .count();
+        kept >= least
+    })
 }
 
 /// The decimated levels of [`fit`], in turn: the factors they end at.

@@ -131,6 +131,12 @@ pub struct FitConfig {
     /// rest of a long descent to full sweeps (BENCHMARKS.md, issue 15,
     /// "the extrapolation's tail projection").
     pub coarse_max_sweeps: usize,
+    /// Hold G on the full set where the coarse levels fitted it
+    /// ([`crate::coarse::Schedule::keep_g`]): `None` does so on isotropic
+    /// layouts (measured on the 16 MERL and 10 RGL tables: the G pass was
+    /// half of each full sweep, BENCHMARKS.md issue 15) and updates G on
+    /// anisotropic ones, whose 6 x 48 G tables were not measured this way.
+    pub keep_coarse_g: Option<bool>,
     /// Joint Gauss-Newton steps between sweeps (`solver::gauss_newton`):
     /// `None` uses them on anisotropic layouts only (where AWLS alone
     /// leaves blended lobes slowly: docs/anisotropic.md), `Some` forces.
@@ -181,6 +187,7 @@ impl Default for FitConfig {
             coarse: vec![32],
             coarse_tol: 1e-3,
             coarse_max_sweeps: 100,
+            keep_coarse_g: None,
             gauss_newton: None,
             taper_from: s.taper_from_deg,
             masking: o.masking,
@@ -825,6 +832,7 @@ fn run_kind(
             factors: &config.coarse,
             tol: config.coarse_tol,
             max_sweeps: config.coarse_max_sweeps,
+            keep_g: config.keep_coarse_g.unwrap_or(layout.is_isotropic()),
         };
         let fitted = crate::coarse::fit(samples, (layout, so), schedule, opts, start, &mut obs)
             .map_err(|e| match e {

@@ -310,7 +310,34 @@ impl<T> DisjointWrites<T> {
     }
 }
 
+/// Whether a fit on a [`FitSet`] updates G (and needs its sample lists).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GUse {
+    /// G is updated: every point's sample list is built.
+    #[default]
+    Updated,
+    /// G is held fixed: only [`GIncidence::has_data`] is filled.
+    Fixed,
+}
+
 impl GIncidence {
+    /// No sample lists, only which points a weighted sample touches (the
+    /// same `has_data` as [`GIncidence::build`]), for sets whose G is
+    /// held fixed.
+    fn has_data_only(nodes: usize, gi: &StencilTable, go: &StencilTable, total_w: &[f64]) -> Self {
+        let mut has_data = vec![false; nodes];
+        for (j, _) in total_w.iter().enumerate().filter(|(_, &w)| w > 0.0) {
+            for (k, _) in gi.entries(j).chain(go.entries(j)) {
+                has_data[k] = true;
+            }
+        }
+        GIncidence {
+            start: vec![0; nodes + 1],
+            has_data,
+            ..Default::default()
+        }
+    }
+
     /// The CSR range of point k.
     pub fn entries(&self, k: usize) -> std::ops::Range<usize> {
         self.start[k]..self.start[k + 1]
@@ -680,6 +707,19 @@ impl FitSet {
         layout: Layout,
         options: SampleOptions,
     ) -> Result<Self, SampleError> {
+        Self::build_for(samples, layout, options, GUse::Updated)
+    }
+
+    /// [`FitSet::build`] for a fit whose G is updated or held fixed: a set
+    /// for [`GUse::Fixed`] skips G's sample lists (a tenth of the build's
+    /// time and tens of MB) and keeps only which G points have data, so
+    /// a G update on it finds no samples.
+    pub fn build_for(
+        samples: &MeasuredSamples,
+        layout: Layout,
+        options: SampleOptions,
+        g_use: GUse,
+    ) -> Result<Self, SampleError> {
         layout.validate()?;
         if !samples.isotropic && layout.is_isotropic() {
             return Err(SampleError::AnisotropicData(samples.source.clone()));
@@ -914,7 +954,12 @@ impl FitSet {
         lap.done("D incidence");
         set.f_inc = Incidence::build(layout.f.len(), &set.f_st, &total_w);
         lap.done("F incidence");
-        set.g_inc = GIncidence::build(layout.g.len(), &set.gi_st, &set.go_st, &total_w);
+        set.g_inc = match g_use {
+            GUse::Updated => GIncidence::build(layout.g.len(), &set.gi_st, &set.go_st, &total_w),
+            GUse::Fixed => {
+                GIncidence::has_data_only(layout.g.len(), &set.gi_st, &set.go_st, &total_w)
+            }
+        };
         lap.done("G incidence");
         Ok(set)
     }
@@ -949,6 +994,23 @@ impl FitSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_set_for_fixed_g_has_the_same_g_points_with_data() {
+        let truth = crate::synth::known_factor_model(Layout::default(), &[0.05, 0.3]);
+        let mut s = crate::reconstruct::to_merl(&truth).samples("known");
+        s.samples = s.samples.into_iter().step_by(40).collect();
+        let so = SampleOptions::default();
+        let full = FitSet::build(&s, Layout::default(), so).unwrap();
+        let lean = FitSet::build_for(&s, Layout::default(), so, GUse::Fixed).unwrap();
+        assert_eq!(full.g_inc.has_data, lean.g_inc.has_data);
+        assert!(full.g_inc.has_data.iter().any(|&h| h) && full.g_inc.has_data.iter().any(|&h| !h));
+        assert!(lean.g_inc.sample.is_empty() && full.g_inc.sample.len() > full.len());
+        for k in 0..lean.g_inc.has_data.len() {
+            assert!(lean.g_inc.entries(k).is_empty());
+        }
+        assert_eq!(full.y, lean.y);
+    }
 
     /// splitmix64: a fixed pseudo-random sequence.
     fn mix(i: u64) -> u64 {

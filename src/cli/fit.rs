@@ -86,6 +86,11 @@ pub struct FitFlags {
     /// Disable the extrapolation step between sweeps (plain AWLS).
     #[arg(long)]
     pub no_accelerate: bool,
+    /// Hold G on the full sample set where the coarse level fitted it: on,
+    /// off (default: on for isotropic tables; G is smooth, so the coarse
+    /// level's samples pin it down, and its pass is half a full sweep).
+    #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    pub keep_coarse_g: Option<bool>,
     /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
     /// anisotropic tables only).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
@@ -154,6 +159,7 @@ impl FitFlags {
             coarse: self.coarse.clone(),
             coarse_tol: self.coarse_tol,
             coarse_max_sweeps: self.coarse_max_sweeps,
+            keep_coarse_g: self.keep_coarse_g,
             gauss_newton: self.gauss_newton,
             taper_from: self.taper_from,
             masking: self.masking,
