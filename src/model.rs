@@ -255,6 +255,11 @@ impl DiffuseForm {
         }
     }
 
+    /// True when [`DiffuseForm::factor`] reads its azimuth argument.
+    pub(crate) fn reads_azimuth(&self) -> bool {
+        matches!(self, DiffuseForm::OrenNayar { .. })
+    }
+
     fn validate(&self) -> Result<(), ModelError> {
         match self {
             DiffuseForm::Lambert => Ok(()),
@@ -647,30 +652,93 @@ impl Model {
     /// [`Model::lobe_terms`] with the cosines of theta_i and theta_o given
     /// (both positive).
     #[inline]
-    fn terms_with_cosines(
-        &self,
-        a: &Angles,
-        ci: f64,
-        co: f64,
-        mut term: impl FnMut(usize, [f64; 3]),
-    ) {
+    fn terms_with_cosines(&self, a: &Angles, ci: f64, co: f64, term: impl FnMut(usize, [f64; 3])) {
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
-        let (gis, gos) = (
-            l.g_stencil(a.theta_i, a.phi_i),
-            l.g_stencil(a.theta_o, a.phi_o),
-        );
         let f = [
             fs.apply_f32(&self.fresnel[0]),
             fs.apply_f32(&self.fresnel[1]),
             fs.apply_f32(&self.fresnel[2]),
         ];
+        self.terms_with_factors(
+            (
+                l.g_stencil(a.theta_i, a.phi_i),
+                l.g_stencil(a.theta_o, a.phi_o),
+            ),
+            ci * co,
+            f,
+            |m| ds.apply_f32(&self.lobes[m].d),
+            term,
+        );
+    }
+
+    /// The lobe terms from the G stencils of the two directions, cos
+    /// theta_i cos theta_o, the F values and each lobe's D value.
+    #[inline(always)]
+    fn terms_with_factors(
+        &self,
+        (gis, gos): (Stencil, Stencil),
+        cos_product: f64,
+        f: [f64; 3],
+        d: impl Fn(usize) -> f64,
+        mut term: impl FnMut(usize, [f64; 3]),
+    ) {
         let masking = self.masking;
         for (m, lobe) in self.lobes.iter().enumerate() {
             let g = masking.product(gis.apply_f32(&lobe.g), gos.apply_f32(&lobe.g));
-            let spec = ds.apply_f32(&lobe.d) * g / (ci * co);
+            let spec = d(m) * g / cos_product;
             term(m, std::array::from_fn(|c| lobe.s[c] as f64 * f[c] * spec));
         }
+    }
+
+    /// An isotropic model's F values and each lobe's D value at (theta_h,
+    /// theta_d) (phi_h, phi_d are not read): what every cell of a table row
+    /// of that theta_h and theta_d shares, for [`Model::eval_half_diff`].
+    ///
+    /// # Panics
+    /// If `d` is not one value per lobe.
+    pub(crate) fn half_diff_factors(&self, theta_h: f64, theta_d: f64, d: &mut [f64]) -> [f64; 3] {
+        debug_assert!(self.layout.is_isotropic());
+        let (ds, fs) = (
+            self.layout.d.stencil(theta_h, 0.0),
+            self.layout.f.stencil(theta_d, 0.0),
+        );
+        for (d, lobe) in d.iter_mut().zip(&self.lobes) {
+            *d = ds.apply_f32(&lobe.d);
+        }
+        std::array::from_fn(|c| fs.apply_f32(&self.fresnel[c]))
+    }
+
+    /// [`Model::eval_angles`] of an isotropic model from its row factors
+    /// ([`Model::half_diff_factors`] at the configuration's theta_h and
+    /// theta_d), theta_i, theta_o, their cosines (`theta.cos()`) and the
+    /// azimuth difference's cosine (read by the Oren-Nayar form only): the
+    /// same arithmetic, so the same bits.
+    #[inline]
+    pub(crate) fn eval_half_diff(
+        &self,
+        (f, d): ([f64; 3], &[f64]),
+        (theta_i, theta_o): (f64, f64),
+        (ci, co): (f64, f64),
+        cos_dphi: f64,
+    ) -> [f64; 3] {
+        let mut v = self.diffuse_term(theta_i, theta_o, cos_dphi);
+        if ci <= 0.0 || co <= 0.0 {
+            return [0.0; 3];
+        }
+        let g = &self.layout.g;
+        self.terms_with_factors(
+            (g.stencil(theta_i, 0.0), g.stencil(theta_o, 0.0)),
+            ci * co,
+            f,
+            |m| d[m],
+            |_, t| {
+                for c in 0..3 {
+                    v[c] += t[c];
+                }
+            },
+        );
+        v.map(|x| x.max(0.0))
     }
 
     /// BRDF value for unit directions in the local shading frame (normal
