@@ -12,6 +12,7 @@
 //! stores its parameters as f32: that is what its files hold, so a model
 //! written and read back is the same model, bit for bit.
 
+use crate::grid::axis::catmull_rom_weights;
 use crate::grid::{Axis, Grid, Stencil};
 use npf_data_loaders::geometry::{Angles, Vec3};
 use serde::{Deserialize, Serialize};
@@ -446,6 +447,37 @@ pub struct Model {
     pub lobes: Vec<Lobe>,
 }
 
+/// G's interpolation at one elevation ([`Model::eval_half_diff`]): on a
+/// Catmull-Rom axis the interval and weights [`catmull_rom_stencil`]
+/// would put in its slots, without building the stencil.
+///
+/// [`catmull_rom_stencil`]: crate::grid::catmull_rom_stencil
+enum GAt {
+    CatmullRom { i: usize, w: [f64; 4], n: usize },
+    Stencil(Stencil),
+}
+
+impl GAt {
+    /// [`Stencil::apply_f32`] of the stencil: the slots in order, zero
+    /// weights and nodes off the axis skipped, so the same bits.
+    #[inline(always)]
+    fn apply_f32(&self, values: &[f32]) -> f64 {
+        match self {
+            GAt::CatmullRom { i, w, n } => {
+                let mut s = 0.0;
+                for (k, &wk) in w.iter().enumerate() {
+                    let j = (*i + k).wrapping_sub(1);
+                    if wk != 0.0 && j < *n {
+                        s += wk * values[j] as f64;
+                    }
+                }
+                s
+            }
+            GAt::Stencil(st) => st.apply_f32(values),
+        }
+    }
+}
+
 impl Model {
     /// Number of specular lobes.
     pub fn lobe_count(&self) -> usize {
@@ -660,11 +692,12 @@ impl Model {
             fs.apply_f32(&self.fresnel[1]),
             fs.apply_f32(&self.fresnel[2]),
         ];
+        let (gis, gos) = (
+            l.g_stencil(a.theta_i, a.phi_i),
+            l.g_stencil(a.theta_o, a.phi_o),
+        );
         self.terms_with_factors(
-            (
-                l.g_stencil(a.theta_i, a.phi_i),
-                l.g_stencil(a.theta_o, a.phi_o),
-            ),
+            (|g: &[f32]| gis.apply_f32(g), |g: &[f32]| gos.apply_f32(g)),
             ci * co,
             f,
             |m| ds.apply_f32(&self.lobes[m].d),
@@ -672,12 +705,12 @@ impl Model {
         );
     }
 
-    /// The lobe terms from the G stencils of the two directions, cos
-    /// theta_i cos theta_o, the F values and each lobe's D value.
+    /// The lobe terms from G at the two directions (of a lobe's G
+    /// values), cos theta_i cos theta_o, the F values and each lobe's D value.
     #[inline(always)]
     fn terms_with_factors(
         &self,
-        (gis, gos): (Stencil, Stencil),
+        (gi, go): (impl Fn(&[f32]) -> f64, impl Fn(&[f32]) -> f64),
         cos_product: f64,
         f: [f64; 3],
         d: impl Fn(usize) -> f64,
@@ -685,7 +718,7 @@ impl Model {
     ) {
         let masking = self.masking;
         for (m, lobe) in self.lobes.iter().enumerate() {
-            let g = masking.product(gis.apply_f32(&lobe.g), gos.apply_f32(&lobe.g));
+            let g = masking.product(gi(&lobe.g), go(&lobe.g));
             let spec = d(m) * g / cos_product;
             term(m, std::array::from_fn(|c| lobe.s[c] as f64 * f[c] * spec));
         }
@@ -709,6 +742,19 @@ impl Model {
         std::array::from_fn(|c| fs.apply_f32(&self.fresnel[c]))
     }
 
+    /// G's interpolation at elevation `theta` on a 1-D G grid.
+    #[inline(always)]
+    fn g_at(&self, theta: f64) -> GAt {
+        let axis = self.layout.g.theta;
+        match axis {
+            Axis::CatmullRom { n } => {
+                let (i, w) = catmull_rom_weights(axis.coord(theta), n);
+                GAt::CatmullRom { i, w, n }
+            }
+            _ => GAt::Stencil(self.layout.g.stencil(theta, 0.0)),
+        }
+    }
+
     /// [`Model::eval_angles`] of an isotropic model from its row factors
     /// ([`Model::half_diff_factors`] at the configuration's theta_h and
     /// theta_d), theta_i, theta_o, their cosines (`theta.cos()`) and the
@@ -726,9 +772,9 @@ impl Model {
         if ci <= 0.0 || co <= 0.0 {
             return [0.0; 3];
         }
-        let g = &self.layout.g;
+        let (gi, go) = (self.g_at(theta_i), self.g_at(theta_o));
         self.terms_with_factors(
-            (g.stencil(theta_i, 0.0), g.stencil(theta_o, 0.0)),
+            (|g: &[f32]| gi.apply_f32(g), |g: &[f32]| go.apply_f32(g)),
             ci * co,
             f,
             |m| d[m],
