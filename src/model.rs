@@ -12,6 +12,7 @@
 //! stores its parameters as f32: that is what its files hold, so a model
 //! written and read back is the same model, bit for bit.
 
+use crate::grid::axis::catmull_rom_weights;
 use crate::grid::{Axis, Grid, Stencil};
 use npf_data_loaders::geometry::{Angles, Vec3};
 use serde::{Deserialize, Serialize};
@@ -255,6 +256,11 @@ impl DiffuseForm {
         }
     }
 
+    /// True when [`DiffuseForm::factor`] reads its azimuth argument.
+    pub(crate) fn reads_azimuth(&self) -> bool {
+        matches!(self, DiffuseForm::OrenNayar { .. })
+    }
+
     fn validate(&self) -> Result<(), ModelError> {
         match self {
             DiffuseForm::Lambert => Ok(()),
@@ -439,6 +445,37 @@ pub struct Model {
     pub fresnel: [Vec<f32>; 3],
     /// The specular lobes.
     pub lobes: Vec<Lobe>,
+}
+
+/// G's interpolation at one elevation ([`Model::eval_half_diff`]): on a
+/// Catmull-Rom axis the interval and weights [`catmull_rom_stencil`]
+/// would put in its slots, without building the stencil.
+///
+/// [`catmull_rom_stencil`]: crate::grid::catmull_rom_stencil
+enum GAt {
+    CatmullRom { i: usize, w: [f64; 4], n: usize },
+    Stencil(Stencil),
+}
+
+impl GAt {
+    /// [`Stencil::apply_f32`] of the stencil: the slots in order, zero
+    /// weights and nodes off the axis skipped, so the same bits.
+    #[inline(always)]
+    fn apply_f32(&self, values: &[f32]) -> f64 {
+        match self {
+            GAt::CatmullRom { i, w, n } => {
+                let mut s = 0.0;
+                for (k, &wk) in w.iter().enumerate() {
+                    let j = (*i + k).wrapping_sub(1);
+                    if wk != 0.0 && j < *n {
+                        s += wk * values[j] as f64;
+                    }
+                }
+                s
+            }
+            GAt::Stencil(st) => st.apply_f32(values),
+        }
+    }
 }
 
 impl Model {
@@ -647,30 +684,107 @@ impl Model {
     /// [`Model::lobe_terms`] with the cosines of theta_i and theta_o given
     /// (both positive).
     #[inline]
-    fn terms_with_cosines(
-        &self,
-        a: &Angles,
-        ci: f64,
-        co: f64,
-        mut term: impl FnMut(usize, [f64; 3]),
-    ) {
+    fn terms_with_cosines(&self, a: &Angles, ci: f64, co: f64, term: impl FnMut(usize, [f64; 3])) {
         let l = &self.layout;
         let (ds, fs) = (l.d_stencil(a), l.f_stencil(a));
-        let (gis, gos) = (
-            l.g_stencil(a.theta_i, a.phi_i),
-            l.g_stencil(a.theta_o, a.phi_o),
-        );
         let f = [
             fs.apply_f32(&self.fresnel[0]),
             fs.apply_f32(&self.fresnel[1]),
             fs.apply_f32(&self.fresnel[2]),
         ];
+        let (gis, gos) = (
+            l.g_stencil(a.theta_i, a.phi_i),
+            l.g_stencil(a.theta_o, a.phi_o),
+        );
+        self.terms_with_factors(
+            (|g: &[f32]| gis.apply_f32(g), |g: &[f32]| gos.apply_f32(g)),
+            ci * co,
+            f,
+            |m| ds.apply_f32(&self.lobes[m].d),
+            term,
+        );
+    }
+
+    /// The lobe terms from G at the two directions (of a lobe's G
+    /// values), cos theta_i cos theta_o, the F values and each lobe's D value.
+    #[inline(always)]
+    fn terms_with_factors(
+        &self,
+        (gi, go): (impl Fn(&[f32]) -> f64, impl Fn(&[f32]) -> f64),
+        cos_product: f64,
+        f: [f64; 3],
+        d: impl Fn(usize) -> f64,
+        mut term: impl FnMut(usize, [f64; 3]),
+    ) {
         let masking = self.masking;
         for (m, lobe) in self.lobes.iter().enumerate() {
-            let g = masking.product(gis.apply_f32(&lobe.g), gos.apply_f32(&lobe.g));
-            let spec = ds.apply_f32(&lobe.d) * g / (ci * co);
+            let g = masking.product(gi(&lobe.g), go(&lobe.g));
+            let spec = d(m) * g / cos_product;
             term(m, std::array::from_fn(|c| lobe.s[c] as f64 * f[c] * spec));
         }
+    }
+
+    /// An isotropic model's F values and each lobe's D value at (theta_h,
+    /// theta_d) (phi_h, phi_d are not read): what every cell of a table row
+    /// of that theta_h and theta_d shares, for [`Model::eval_half_diff`].
+    ///
+    /// # Panics
+    /// If `d` is not one value per lobe.
+    pub(crate) fn half_diff_factors(&self, theta_h: f64, theta_d: f64, d: &mut [f64]) -> [f64; 3] {
+        debug_assert!(self.layout.is_isotropic());
+        let (ds, fs) = (
+            self.layout.d.stencil(theta_h, 0.0),
+            self.layout.f.stencil(theta_d, 0.0),
+        );
+        for (d, lobe) in d.iter_mut().zip(&self.lobes) {
+            *d = ds.apply_f32(&lobe.d);
+        }
+        std::array::from_fn(|c| fs.apply_f32(&self.fresnel[c]))
+    }
+
+    /// G's interpolation at elevation `theta` on a 1-D G grid.
+    #[inline(always)]
+    fn g_at(&self, theta: f64) -> GAt {
+        let axis = self.layout.g.theta;
+        match axis {
+            Axis::CatmullRom { n } => {
+                let (i, w) = catmull_rom_weights(axis.coord(theta), n);
+                GAt::CatmullRom { i, w, n }
+            }
+            _ => GAt::Stencil(self.layout.g.stencil(theta, 0.0)),
+        }
+    }
+
+    /// [`Model::eval_angles`] of an isotropic model from its row factors
+    /// ([`Model::half_diff_factors`] at the configuration's theta_h and
+    /// theta_d), theta_i, theta_o, their cosines (`theta.cos()`) and the
+    /// azimuth difference's cosine (read by the Oren-Nayar form only): the
+    /// same arithmetic, so the same bits.
+    #[inline]
+    pub(crate) fn eval_half_diff(
+        &self,
+        (f, d): ([f64; 3], &[f64]),
+        (theta_i, theta_o): (f64, f64),
+        (ci, co): (f64, f64),
+        cos_dphi: f64,
+    ) -> [f64; 3] {
+        let mut v = self.diffuse_term(theta_i, theta_o, cos_dphi);
+        if ci <= 0.0 || co <= 0.0 {
+            return [0.0; 3];
+        }
+        let (gi, go) = (self.g_at(theta_i), self.g_at(theta_o));
+        self.terms_with_factors(
+            (|g: &[f32]| gi.apply_f32(g), |g: &[f32]| go.apply_f32(g)),
+            ci * co,
+            f,
+            |m| d[m],
+            |_, t| {
+                for c in 0..3 {
+                    v[c] += t[c];
+                }
+            },
+        );
+        v.map(|x| x.max(0.0))
     }
 
     /// BRDF value for unit directions in the local shading frame (normal

@@ -31,27 +31,71 @@ const SMALL: RenderOptions = RenderOptions {
     n_theta: 8,
 };
 
-#[test]
-fn measures_against_a_table_are_those_against_its_samples() {
-    // A fit's record measures the table piece by piece (its samples never
-    // all held): the same numbers, to the bit, for any thread count.
-    let model = known_factor_model(Layout::default(), &[0.1, 0.4]);
-    let table = BRDF.table();
-    let samples = table.samples("ggx");
-    let want = compare_model(&samples, 85.0, &model);
-    assert!(want.samples > 100_000 && want.log_rmse > 0.0, "{want:?}");
-    let table = Table::Merl(table);
+/// `compare_model_table` equals `compare_model` on the table's samples to
+/// the bit, for 1 and 3 threads.
+fn assert_table_measures_match(table: &Table, model: &npf::model::Model, label: &str) {
+    let want = compare_model(&table.samples(label), 85.0, model);
+    assert!(
+        want.samples > 1000 && want.log_rmse > 0.0,
+        "{label}: {want:?}"
+    );
     for threads in [1, 3] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
-        let got = pool.install(|| compare_model_table(&table, 85.0, &model));
+        let got = pool.install(|| compare_model_table(table, 85.0, model));
         let bits =
             |m: &npf::metrics::Metrics| [m.cos_rmse, m.rel_cos_rmse, m.log_rmse].map(f64::to_bits);
-        assert_eq!(got.samples, want.samples);
-        assert_eq!(bits(&got), bits(&want), "{threads} threads");
+        assert_eq!(got.samples, want.samples, "{label}");
+        assert_eq!(bits(&got), bits(&want), "{label}, {threads} threads");
     }
+}
+
+#[test]
+fn measures_against_a_table_are_those_against_its_samples() {
+    // A fit's record measures the table piece by piece (its samples never
+    // all held; on a MERL table F and D once per (theta_h, theta_d) row
+    // and no azimuths unless the diffuse form reads them): the same
+    // numbers, to the bit, for any thread count, for a synthetic model, one
+    // with the other masking and an azimuth-reading diffuse form, and a
+    // fitted 822-parameter model (the checked-in fit).
+    use npf::model::{DiffuseForm, Masking};
+    let table = Table::Merl(BRDF.table());
+    let known = known_factor_model(Layout::default(), &[0.1, 0.4]);
+    let mut other = known.clone();
+    other.masking = Masking::HeightCorrelated;
+    other.diffuse_form = DiffuseForm::OrenNayar { sigma: 0.4 };
+    let fitted = npf::modelfile::read(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fits/ggx-lambert.json"),
+    )
+    .unwrap()
+    .model;
+    assert_eq!(fitted.param_count(), 822);
+    for (label, model) in [
+        ("known", &known),
+        ("height-correlated, Oren-Nayar", &other),
+        ("fitted", &fitted),
+    ] {
+        assert_table_measures_match(&table, model, label);
+    }
+}
+
+#[test]
+fn utia_measures_against_a_table_are_those_against_its_samples() {
+    // A UTIA table's samples are made piece by piece too.
+    use npf::loaders::geometry::{spherical, Angles};
+    let utia = npf::loaders::UtiaTable::from_fn(|ti, pi, tv, pv| {
+        if tv > 1.2 && pv > 6.0 {
+            return None; // some cells missing
+        }
+        BRDF.eval_angles(&Angles::from_directions(
+            spherical(ti, pi),
+            spherical(tv, pv),
+        ))
+    });
+    let model = known_factor_model(Layout::anisotropic(), &[0.2]);
+    assert_table_measures_match(&Table::Utia(utia), &model, "utia");
 }
 
 #[test]

@@ -134,9 +134,9 @@ impl Table {
     }
 
     /// `f` of each consecutive piece of `chunk` samples of [`Table::samples`]
-    /// (the last may be shorter), in piece order, computed in parallel. A
-    /// MERL table's samples are made piece by piece, never all held
-    /// ([`MerlTable::map_sample_chunks`]).
+    /// (the last may be shorter), in piece order, computed in parallel. The
+    /// samples are made piece by piece, never all held
+    /// ([`MerlTable::map_sample_chunks`], [`UtiaTable::map_sample_chunks`]).
     ///
     /// # Panics
     /// If `chunk` is 0.
@@ -145,10 +145,9 @@ impl Table {
         chunk: usize,
         f: impl Fn(&[crate::MeasuredSample]) -> R + Sync,
     ) -> Vec<R> {
-        use rayon::prelude::*;
         match self {
             Table::Merl(t) => t.map_sample_chunks(chunk, f),
-            Table::Utia(t) => t.samples("").samples.par_chunks(chunk).map(&f).collect(),
+            Table::Utia(t) => t.map_sample_chunks(chunk, f),
         }
     }
 }

@@ -330,6 +330,32 @@ impl MerlTable {
         chunk: usize,
         f: impl Fn(&[MeasuredSample]) -> R + Sync,
     ) -> Vec<R> {
+        self.map_cell_pieces(
+            chunk,
+            || Vec::with_capacity(chunk),
+            |piece: &mut Vec<MeasuredSample>, cells| {
+                piece.clear();
+                cells.for_each(|c| piece.push(c.sample()));
+                f(piece)
+            },
+        )
+    }
+
+    /// The cells behind [`MerlTable::map_sample_chunks`]' pieces, not made
+    /// into samples: `f(scratch, piece)` of each consecutive piece of
+    /// `chunk` sample cells, in piece order, computed in parallel (rayon's
+    /// current pool) with one `scratch` from `init` per worker. For callers
+    /// that use the grid's structure (a θh, θd row's 180 cells share their
+    /// half and difference elevations) and skip the azimuths.
+    ///
+    /// # Panics
+    /// If `chunk` is 0.
+    pub fn map_cell_pieces<T, R: Send>(
+        &self,
+        chunk: usize,
+        init: impl Fn() -> T + Sync + Send,
+        f: impl Fn(&mut T, CellPiece<'_>) -> R + Sync,
+    ) -> Vec<R> {
         use rayon::prelude::*;
         assert!(chunk > 0, "pieces of at least one sample");
         let trig = NodeTrig::new();
@@ -355,27 +381,18 @@ impl MerlTable {
         let total = starts[rows.len()];
         (0..total.div_ceil(chunk))
             .into_par_iter()
-            .map_init(
-                || Vec::with_capacity(chunk),
-                |piece: &mut Vec<MeasuredSample>, c| {
-                    piece.clear();
-                    let (lo, hi) = (c * chunk, (c * chunk + chunk).min(total));
-                    // The row holding sample `lo`, then rows until `hi`.
-                    let mut i_th = starts.partition_point(|&s| s <= lo) - 1;
-                    let mut from = lo - starts[i_th];
-                    while piece.len() < hi - lo {
-                        let want = (hi - lo - piece.len()).min(rows[i_th].len() - from);
-                        for &at in &rows[i_th][from..from + want] {
-                            let at = at as usize;
-                            self.row_cells_at(&trig, i_th, at..at + 1, |_, angles, rgb, wi, wo| {
-                                piece.push(sample_of(angles, rgb, wi, wo))
-                            });
-                        }
-                        (i_th, from) = (i_th + 1, 0);
-                    }
-                    f(piece)
-                },
-            )
+            .map_init(init, |scratch, c| {
+                let (lo, hi) = (c * chunk, (c * chunk + chunk).min(total));
+                let piece = CellPiece {
+                    table: self,
+                    trig: &trig,
+                    rows: &rows,
+                    starts: &starts,
+                    lo,
+                    hi,
+                };
+                f(scratch, piece)
+            })
             .collect()
     }
 
@@ -440,6 +457,85 @@ impl MerlTable {
             };
             sample(at, angles, rgb, wi, wo);
         }
+    }
+}
+
+/// A consecutive run of sample cells ([`MerlTable::map_cell_pieces`]).
+pub struct CellPiece<'a> {
+    table: &'a MerlTable,
+    trig: &'a NodeTrig,
+    rows: &'a [Vec<u16>],
+    starts: &'a [usize],
+    lo: usize,
+    hi: usize,
+}
+
+impl CellPiece<'_> {
+    /// Number of sample cells in the piece.
+    pub fn len(&self) -> usize {
+        self.hi - self.lo
+    }
+
+    /// True for a piece of no cells.
+    pub fn is_empty(&self) -> bool {
+        self.hi == self.lo
+    }
+
+    /// Calls `visit` for each of the piece's cells, in sample order.
+    #[inline]
+    pub fn for_each(&self, mut visit: impl FnMut(SampleCell)) {
+        let (lo, hi) = (self.lo, self.hi);
+        // The row holding sample `lo`, then rows until `hi`.
+        let mut i_th = self.starts.partition_point(|&s| s <= lo) - 1;
+        let mut from = lo - self.starts[i_th];
+        let mut done = 0;
+        while done < hi - lo {
+            let row = &self.rows[i_th];
+            let want = (hi - lo - done).min(row.len() - from);
+            for &at in &row[from..from + want] {
+                let at = at as usize;
+                self.table
+                    .row_cells_at(self.trig, i_th, at..at + 1, |_, angles, rgb, wi, wo| {
+                        visit(SampleCell {
+                            i_th,
+                            i_td: at / MerlTable::RES_PHI_D,
+                            angles,
+                            rgb,
+                            wi,
+                            wo,
+                        })
+                    });
+            }
+            done += want;
+            (i_th, from) = (i_th + 1, 0);
+        }
+    }
+}
+
+/// One sample cell of a [`CellPiece`]: what its [`MeasuredSample`] is made
+/// from.
+#[derive(Clone, Copy, Debug)]
+pub struct SampleCell {
+    /// The theta_h row.
+    pub i_th: usize,
+    /// The theta_d row.
+    pub i_td: usize,
+    /// The node's half and difference angles (theta_h, theta_d, phi_d;
+    /// phi_h = 0); the elevations and azimuths of wi and wo are 0 here.
+    pub angles: Angles,
+    /// Physical RGB (1/sr).
+    pub rgb: [f64; 3],
+    /// The light direction (both above the horizon).
+    pub wi: [f64; 3],
+    /// The view direction.
+    pub wo: [f64; 3],
+}
+
+impl SampleCell {
+    /// The cell's sample, as [`MerlTable::samples`] makes it.
+    #[inline]
+    pub fn sample(&self) -> MeasuredSample {
+        sample_of(self.angles, self.rgb, self.wi, self.wo)
     }
 }
 
@@ -560,21 +656,11 @@ mod tests {
             ((2.0 * th + td - pd).cos() > -0.7).then_some([th, td + 0.5, pd + 1.0])
         });
         let all = table.samples("t").samples;
-        for threads in [1, 3] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            for chunk in [1000, 8192, 20_000, 2 * MerlTable::CELLS] {
-                let pieces = pool.install(|| table.map_sample_chunks(chunk, |p| p.to_vec()));
-                assert_eq!(pieces.len(), all.len().div_ceil(chunk));
-                assert!(pieces.iter().rev().skip(1).all(|p| p.len() == chunk));
-                assert!(
-                    pieces.concat() == all,
-                    "{threads} threads, pieces of {chunk}"
-                );
-            }
-        }
+        crate::samples::assert_pieces_are(
+            &all,
+            &[1000, 8192, 20_000, 2 * MerlTable::CELLS],
+            |chunk| table.map_sample_chunks(chunk, |p| p.to_vec()),
+        );
     }
 
     #[test]

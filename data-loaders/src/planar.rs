@@ -11,7 +11,18 @@ use crate::error::LoadError;
 /// laid out as channel planes of `cells` values each.
 pub(crate) fn check_finite(raw: &[f64], cells: usize, path: &Path) -> Result<(), LoadError> {
     use rayon::prelude::*;
-    match raw.par_iter().position_first(|v| !v.is_finite()) {
+    // Whole blocks are checked with a branch-free fold (vectorised), and
+    // only a block that fails is searched for its first bad value: the
+    // same answer as a search value by value, at a fraction of the work.
+    const BLOCK: usize = 4096;
+    let first = raw
+        .par_chunks(BLOCK)
+        .position_first(|b| !b.iter().fold(true, |ok, v| ok & v.is_finite()))
+        .and_then(|k| {
+            let at = raw[k * BLOCK..].iter().position(|v| !v.is_finite());
+            at.map(|j| k * BLOCK + j)
+        });
+    match first {
         None => Ok(()),
         Some(i) => Err(LoadError::NonFinite {
             path: path.to_path_buf(),
@@ -144,4 +155,37 @@ fn open_sized(path: &Path, expected: u64, what: &'static str) -> Result<std::fs:
         });
     }
     Ok(file)
+}
+
+#[cfg(test)]
+mod finite_tests {
+    use super::*;
+
+    #[test]
+    fn the_first_non_finite_value_is_named() {
+        let cells = 10_000;
+        let path = Path::new("t");
+        let at = |raw: &[f64]| match check_finite(raw, cells, path) {
+            Ok(()) => None,
+            Err(LoadError::NonFinite { channel, cell, .. }) => Some(channel * cells + cell),
+            Err(e) => panic!("{e:?}"),
+        };
+        let mut raw = vec![1.0; 3 * cells];
+        assert_eq!(at(&raw), None);
+        // Several bad values, in one block and in later blocks: the first wins.
+        for (i, v) in [
+            (25_000, f64::NAN),
+            (12_290, f64::INFINITY),
+            (12_289, f64::NEG_INFINITY),
+        ] {
+            raw[i] = v;
+        }
+        raw[29_999] = f64::NAN;
+        assert_eq!(at(&raw), Some(12_289));
+        raw[0] = f64::NAN;
+        assert_eq!(at(&raw), Some(0));
+        let mut raw = vec![0.5; 3 * cells];
+        raw[3 * cells - 1] = f64::INFINITY; // in the short last block
+        assert_eq!(at(&raw), Some(3 * cells - 1));
+    }
 }

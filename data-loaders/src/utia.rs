@@ -232,25 +232,61 @@ impl UtiaTable {
     /// All nodes are above the horizon (θ ≤ 75°). `isotropic` is false.
     /// Samples are in cell order.
     pub fn samples(&self, source: &str) -> MeasuredSamples {
-        let mut samples = Vec::with_capacity(Self::CELLS);
-        let mut missing = 0;
-        for (i_ti, i_pi, i_tv, i_pv) in grid(Self::N_THETA, Self::N_PHI) {
-            let Some(rgb) = self.cell(Self::index(i_ti, i_pi, i_tv, i_pv)) else {
-                missing += 1;
-                continue;
-            };
-            let (ti, pi, tv, pv) = Self::node_angles(i_ti, i_pi, i_tv, i_pv);
-            samples.push(MeasuredSample {
-                angles: Angles::from_directions(spherical(ti, pi), spherical(tv, pv)),
-                rgb,
-            });
-        }
+        let samples: Vec<MeasuredSample> =
+            (0..Self::CELLS).filter_map(|i| self.sample_at(i)).collect();
+        let missing = Self::CELLS - samples.len();
         MeasuredSamples {
             source: source.to_string(),
             isotropic: false,
             samples,
             missing,
         }
+    }
+
+    /// The samples of [`UtiaTable::samples`], the same values in the same
+    /// order, in consecutive pieces of `chunk` (the last may be shorter):
+    /// `f` of each piece, in piece order, made and consumed in parallel
+    /// (rayon's current pool) one at a time per worker, so the samples are
+    /// never all held; the same result for any thread count.
+    ///
+    /// # Panics
+    /// If `chunk` is 0.
+    pub fn map_sample_chunks<R: Send>(
+        &self,
+        chunk: usize,
+        f: impl Fn(&[MeasuredSample]) -> R + Sync,
+    ) -> Vec<R> {
+        use rayon::prelude::*;
+        assert!(chunk > 0, "pieces of at least one sample");
+        // The valid cells' indices (below 2^18), in cell order.
+        let valid: Vec<u32> = (0..Self::CELLS as u32)
+            .filter(|&i| self.cell(i as usize).is_some())
+            .collect();
+        valid
+            .par_chunks(chunk)
+            .map_init(
+                || Vec::with_capacity(chunk),
+                |piece: &mut Vec<MeasuredSample>, cells| {
+                    piece.clear();
+                    piece.extend(cells.iter().filter_map(|&i| self.sample_at(i as usize)));
+                    f(piece)
+                },
+            )
+            .collect()
+    }
+
+    /// The sample of cell `index` ([`UtiaTable::samples`]), `None` if missing.
+    #[inline]
+    fn sample_at(&self, index: usize) -> Option<MeasuredSample> {
+        let rgb = self.cell(index)?;
+        let row = Self::N_THETA * Self::N_PHI;
+        let (i_ti, i_pi) = ((index / row) / Self::N_PHI, (index / row) % Self::N_PHI);
+        let (i_tv, i_pv) = ((index % row) / Self::N_PHI, index % Self::N_PHI);
+        let (ti, pi, tv, pv) = Self::node_angles(i_ti, i_pi, i_tv, i_pv);
+        Some(MeasuredSample {
+            angles: Angles::from_directions(spherical(ti, pi), spherical(tv, pv)),
+            rgb,
+        })
     }
 }
 
@@ -311,6 +347,18 @@ mod tests {
 
         let e = t.write(&p, false).unwrap_err();
         assert!(matches!(e, LoadError::Exists { .. }), "{e:?}");
+    }
+
+    #[test]
+    fn sample_pieces_are_the_samples_in_order_for_any_thread_count() {
+        let mut raw = UtiaTable::from_fn(synthetic).raw().to_vec();
+        raw[UtiaTable::index(0, 0, 0, 0)] = -1.0; // the first cell missing too
+        let t = UtiaTable::from_raw(raw);
+        let all = t.samples("t").samples;
+        assert!(all.len() < UtiaTable::CELLS - 6 * 48);
+        crate::samples::assert_pieces_are(&all, &[1000, 8192, 2 * UtiaTable::CELLS], |chunk| {
+            t.map_sample_chunks(chunk, |p| p.to_vec())
+        });
     }
 
     #[test]
