@@ -91,6 +91,9 @@ pub struct Schedule<'a> {
     /// what needs them all. The G pass is half a full sweep's time
     /// (BENCHMARKS.md, issue 15, "G from the coarse level").
     pub keep_g: bool,
+    /// The full set's tolerance when G is kept: its sweeps then move D, F,
+    /// d and s only, which settle within a few sweeps.
+    pub kept_g_tol: f64,
 }
 
 /// A coarse-to-fine fit's result.
@@ -131,6 +134,7 @@ pub fn fit(
     let (opts_full, g_use) = if keep_g {
         let fixed = FitOptions {
             g_method: GMethod::Fixed,
+            tol: schedule.kept_g_tol,
             ..opts
         };
         (fixed, GUse::Fixed)

@@ -140,6 +140,10 @@ fn bad_flags_and_outputs_fail_cleanly_and_nothing_is_overwritten() {
     );
     assert_fails(&quick_fit(&input, &out, &["--tol=-1"]), "--tol");
     assert_fails(
+        &quick_fit(&input, &out, &["--kept-g-tol=NaN"]),
+        "--kept-g-tol",
+    );
+    assert_fails(
         &quick_fit(&input, &out, &["--weighting", "cubic"]),
         "invalid value 'cubic'",
     );

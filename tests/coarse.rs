@@ -37,6 +37,7 @@ fn coarse_fit(s: &MeasuredSamples, levels: &[usize], opts: FitOptions, keep_g: b
         tol: 1e-3,
         max_sweeps: 50,
         keep_g,
+        kept_g_tol: opts.tol,
     };
     let borrowed = Cow::Borrowed(s);
     let f = fit(borrowed, (layout, so), schedule, opts, start, &mut quiet).unwrap();
@@ -202,6 +203,7 @@ fn too_small_a_level_is_skipped() {
         tol: 1e-3,
         max_sweeps: 50,
         keep_g: true,
+        kept_g_tol: opts.tol,
     };
     let borrowed = Cow::Borrowed(&s);
     let f = fit(borrowed, (layout, so), schedule, opts, start, &mut quiet).unwrap();

@@ -91,6 +91,10 @@ pub struct FitFlags {
     /// level's samples pin it down, and its pass is half a full sweep).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
     pub keep_coarse_g: Option<bool>,
+    /// Tolerance of the full set's sweeps when G is kept from the coarse
+    /// level (they move D, F, d and s only; --tol applies otherwise).
+    #[arg(long, default_value_t = defaults().kept_g_tol)]
+    pub kept_g_tol: f64,
     /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
     /// anisotropic tables only).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
@@ -160,6 +164,7 @@ impl FitFlags {
             coarse_tol: self.coarse_tol,
             coarse_max_sweeps: self.coarse_max_sweeps,
             keep_coarse_g: self.keep_coarse_g,
+            kept_g_tol: self.kept_g_tol,
             gauss_newton: self.gauss_newton,
             taper_from: self.taper_from,
             masking: self.masking,
