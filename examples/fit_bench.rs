@@ -177,7 +177,7 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
         max_sweeps: s.coarse_max_sweeps,
         // As `npf fit` on an isotropic table.
         keep_g: FitConfig::default().keep_coarse_g.unwrap_or(true),
-        kept_g_tol: FitConfig::default().kept_g_tol,
+        kept_g_tol: FitConfig::default().kept_g_tol.unwrap_or(2.0 * s.tol),
     };
     // Owned: the samples are freed before the full set's sweeps (as in
     // `npf fit`) and made again from the table for the error measures.

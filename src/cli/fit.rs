@@ -92,9 +92,10 @@ pub struct FitFlags {
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
     pub keep_coarse_g: Option<bool>,
     /// Tolerance of the full set's sweeps when G is kept from the coarse
-    /// level (they move D, F, d and s only; --tol applies otherwise).
-    #[arg(long, default_value_t = defaults().kept_g_tol)]
-    pub kept_g_tol: f64,
+    /// level (they move D, F, d and s only; --tol applies otherwise)
+    /// [default: twice --tol]
+    #[arg(long)]
+    pub kept_g_tol: Option<f64>,
     /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
     /// anisotropic tables only).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
