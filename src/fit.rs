@@ -772,6 +772,9 @@ struct Produced {
     /// What the data-dependent floor read and chose (read once, before the
     /// samples are freed).
     floor: FloorRule,
+    /// The coarse-to-fine schedule as run (absent: no decimated level ran),
+    /// for the record: whether G was fitted on the full set or kept.
+    coarse: Option<serde_json::Value>,
 }
 
 /// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
@@ -863,11 +866,27 @@ fn run_kind(
             );
         }
         crate::phases::mark("fit (set, coarse, sweeps)");
+        // `levels` is empty exactly when no decimated level ran, and G is
+        // kept only when one did (`coarse::fit`).
+        let coarse = (!fitted.levels.is_empty()).then(|| {
+            let kept = schedule.keep_g;
+            serde_json::json!({
+                "levels": fitted.levels.iter().map(|l| serde_json::json!({
+                    "factor": l.factor,
+                    "samples": l.samples,
+                    "sweeps": l.sweeps,
+                    "converged": l.converged,
+                })).collect::<Vec<_>>(),
+                "g_on_full_set": if kept { "kept" } else { "updated" },
+                "full_set_tol": if kept { schedule.kept_g_tol } else { opts.tol },
+            })
+        });
         Ok::<_, FitError>(Produced {
             result: fitted.result,
             ggx: None,
             set_len: Some(fitted.set_len),
             floor,
+            coarse,
         })
     };
     let mut produced = match config.model {
@@ -914,6 +933,7 @@ fn run_kind(
                 ggx: Some(fit.params),
                 set_len: None,
                 floor,
+                coarse: None,
             })
         }
     }?;
@@ -1011,6 +1031,7 @@ fn fit_measured<'a>(
             ggx,
             set_len,
             floor,
+            coarse,
         } = run_kind(samples, config, observer)?;
         // The sets and caches are freed; their pages go back before the
         // samples are made again.
@@ -1076,6 +1097,9 @@ fn fit_measured<'a>(
                 if config.grazing_trust > 0.0 {
                     let g = config.grazing_rule(&floor);
                     v["grazing"] = serde_json::to_value(g).unwrap_or_default();
+                }
+                if let Some(c) = coarse {
+                    v["coarse"] = c;
                 }
                 v
             }),

@@ -212,3 +212,35 @@ fn too_small_a_level_is_skipped() {
     let plain = Executor::new(&set, opts).run().unwrap();
     assert_eq!(f.result.objective.to_bits(), plain.objective.to_bits());
 }
+
+/// The fit record says what the coarse-to-fine schedule did: the levels
+/// run and whether the full set kept the coarse level's G.
+#[test]
+fn the_fit_record_names_the_schedule() {
+    use npf::fit::FitConfig;
+    let s = samples();
+    let config = |coarse: Vec<usize>, keep: Option<bool>| FitConfig {
+        coarse,
+        coarse_max_sweeps: 4,
+        keep_coarse_g: keep,
+        max_sweeps: 2,
+        tol: 0.0,
+        ..Default::default()
+    };
+    let record = |c: &FitConfig| {
+        let fitted = npf::fit::fit(&s, c, &mut |_, _| {}).unwrap();
+        fitted.info.selection.unwrap().get("coarse").cloned()
+    };
+    // Isotropic data: G kept by default, the full set at twice `tol`.
+    let kept = record(&config(vec![8], None)).expect("a level ran");
+    assert_eq!(kept["g_on_full_set"], "kept");
+    assert_eq!(kept["full_set_tol"], 0.0);
+    let levels = kept["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 1);
+    assert_eq!(levels[0]["factor"], 8);
+    assert_eq!(levels[0]["sweeps"], 4);
+    let updated = record(&config(vec![8], Some(false))).expect("a level ran");
+    assert_eq!(updated["g_on_full_set"], "updated");
+    // No level: nothing to record.
+    assert!(record(&config(vec![1], None)).is_none());
+}
