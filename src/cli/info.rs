@@ -59,6 +59,20 @@ pub fn run(args: InfoArgs) -> CliResult {
                 fit.weighting,
                 fit.g_method
             );
+            if let Some(c) = fit.selection.as_ref().and_then(|s| s.get("coarse")) {
+                let levels: Vec<String> = c["levels"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .map(|l| format!("1/{} {} sweeps", l["factor"], l["sweeps"]))
+                    .collect();
+                println!(
+                    "  coarse levels  {}; G {} on the full set (tolerance {})",
+                    levels.join(", "),
+                    c["g_on_full_set"].as_str().unwrap_or("?"),
+                    c["full_set_tol"]
+                );
+            }
             if let Some(e) = &fit.metrics {
                 println!("  errors         cosine-weighted RMSE {:.4e} (relative {:.4e}), log RMSE {:.4e}", e.cos_rmse, e.rel_cos_rmse, e.log_rmse);
             }
