@@ -164,6 +164,12 @@ pub struct FitConfig {
     /// studies, not appearance fits (docs/fitting.md: it adds energy
     /// measured data do not have).
     pub compensate: bool,
+    /// The post-fit per-channel energy scale of d and every s
+    /// ([`crate::energy::scale`], read from the re-read MERL table):
+    /// `None` applies it to untrusted isotropic tables only (the rule that
+    /// also pools their scales), `Some(true)` to every MERL table,
+    /// `Some(false)` never. Factor models without compensation only.
+    pub energy_scale: Option<bool>,
 }
 
 impl Default for FitConfig {
@@ -202,6 +208,7 @@ impl Default for FitConfig {
             pool_scale_below: s.pool_scale_below_deg,
             pool_scale_below_untrusted: Some(POOL_SCALE_BELOW_UNTRUSTED),
             compensate: false,
+            energy_scale: None,
         }
     }
 }
@@ -999,6 +1006,49 @@ pub fn fit_owned(
     )
 }
 
+/// Whether the post-fit energy scale can apply to `result`: a factor
+/// model (d and s are the whole energy) on an isotropic layout, with no
+/// multiple-scattering term (which reads the lobes' own energy).
+fn scalable(config: &FitConfig, result: &FitResult) -> bool {
+    config.model != ModelKind::Ggx
+        && !config.compensate
+        && result.model.compensation.is_none()
+        && result.model.layout.is_isotropic()
+}
+
+/// Reads the energy ratio of `result` against `table` and, where the rule
+/// applies it, scales d and every lobe's s per channel (factors and model
+/// alike; the recorded objective stays the sweeps'). Returns the record.
+fn scale_energy(
+    table: &npf_data_loaders::merl::MerlTable,
+    max_theta: f64,
+    result: &mut FitResult,
+) -> serde_json::Value {
+    use crate::energy::scale::{applies, energy_ratio, DEFAULT_RULE};
+    // `scalable` admits isotropic models only.
+    let k = energy_ratio(table, max_theta, &DEFAULT_RULE, &result.model).unwrap_or([1.0; 3]);
+    let applied = applies(&DEFAULT_RULE, &k);
+    if applied {
+        let f = &mut result.factors;
+        for c in 0..3 {
+            f.diffuse[c] *= k[c];
+            for s in &mut f.s {
+                s[c] *= k[c];
+            }
+        }
+        result.model.diffuse = f.diffuse.map(|x| x as f32);
+        for (lobe, s) in result.model.lobes.iter_mut().zip(&f.s) {
+            lobe.s = s.map(|x| x as f32);
+        }
+    }
+    serde_json::json!({
+        "k": k,
+        "applied": applied,
+        "from_theta_h_deg": DEFAULT_RULE.from_theta_h_deg,
+        "dead_zone": DEFAULT_RULE.dead_zone,
+    })
+}
+
 /// What a fit's error measures are computed against.
 enum Measured<'a> {
     /// The samples themselves.
@@ -1027,7 +1077,7 @@ fn fit_measured<'a>(
     let (source, isotropic) = (samples.source.clone(), samples.isotropic);
     pool.install(|| {
         let Produced {
-            result,
+            mut result,
             ggx,
             set_len,
             floor,
@@ -1037,10 +1087,17 @@ fn fit_measured<'a>(
         // samples are made again.
         crate::memory::release_free();
         crate::phases::mark("release");
+        let mut energy = None;
         let metrics = match remeasure()? {
             Measured::Samples(s) => compare_model(s, config.max_theta, &result.model),
             Measured::Table(t) => {
                 crate::phases::mark("re-read");
+                if let npf_data_loaders::Table::Merl(merl) = &t {
+                    if config.energy_scale.unwrap_or(floor.untrusted) && scalable(config, &result) {
+                        energy = Some(scale_energy(merl, config.max_theta, &mut result));
+                        crate::phases::mark("energy scale");
+                    }
+                }
                 compare_model_table(&t, config.max_theta, &result.model)
             }
         };
@@ -1100,6 +1157,9 @@ fn fit_measured<'a>(
                 }
                 if let Some(c) = coarse {
                     v["coarse"] = c;
+                }
+                if let Some(e) = energy {
+                    v["energy_scale"] = e;
                 }
                 v
             }),

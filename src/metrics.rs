@@ -9,6 +9,7 @@
 
 use crate::model::Model;
 use npf_data_loaders::geometry::Angles;
+use npf_data_loaders::merl::{MerlTable, SampleCell};
 use npf_data_loaders::{MeasuredSample, MeasuredSamples, Table};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -110,17 +111,41 @@ fn model_table_sums(table: &Table, max_theta_deg: f64, model: &Model) -> Sums {
         Table::Merl(t) if model.layout.is_isotropic() => t,
         _ => return table_sums(table, max_theta_deg, |a| model.eval_angles(a)),
     };
+    let pieces = map_model_cells(
+        merl,
+        max_theta_deg,
+        model,
+        Sums::default,
+        |acc, cell, v, ci, _| acc.add(v, cell.rgb, ci),
+    );
+    in_order(pieces)
+}
+
+/// Visits the valid cells of a MERL table with theta_i and theta_o at most
+/// `max_theta_deg`, in sample order, with the value of an isotropic
+/// `model` there (the same bits as `eval_angles`) and cos theta_i, cos
+/// theta_o: `visit(acc, cell, value, cos_i, cos_o)` into one `init()` per
+/// piece of [`PIECE`] cells, the pieces computed in parallel and returned
+/// in order. F and D are evaluated once per (theta_h, theta_d) run of
+/// cells, and no azimuth is computed unless the diffuse form reads it.
+pub(crate) fn map_model_cells<R: Send>(
+    merl: &MerlTable,
+    max_theta_deg: f64,
+    model: &Model,
+    init: impl Fn() -> R + Sync + Send,
+    visit: impl Fn(&mut R, &SampleCell, [f64; 3], f64, f64) + Sync,
+) -> Vec<R> {
     let cut = max_theta_deg.to_radians();
     let azimuths = model.diffuse_form.reads_azimuth();
     // acos as `geometry::angles_of` takes it, so the same theta.
     let theta = |z: f64| z.clamp(-1.0, 1.0).acos();
     let azimuth = |v: [f64; 3]| v[1].atan2(v[0]);
-    let pieces = merl.map_cell_pieces(
+    merl.map_cell_pieces(
         PIECE,
         // The (theta_h, theta_d) row last evaluated, its F and D values.
         || ((usize::MAX, 0), [0.0; 3], vec![0.0; model.lobe_count()]),
         |(row, f, d), piece| {
-            let mut acc = Sums::default();
+            let mut acc = init();
             piece.for_each(|cell| {
                 let (theta_i, theta_o) = (theta(cell.wi[2]), theta(cell.wo[2]));
                 if theta_i > cut || theta_o > cut {
@@ -137,12 +162,11 @@ fn model_table_sums(table: &Table, max_theta_deg: f64, model: &Model) -> Sums {
                     1.0
                 };
                 let v = model.eval_half_diff((*f, d), (theta_i, theta_o), (ci, co), cos_dphi);
-                acc.add(v, cell.rgb, ci);
+                visit(&mut acc, &cell, v, ci, co);
             });
             acc
         },
-    );
-    in_order(pieces)
+    )
 }
 
 /// The pieces' sums added in piece order.

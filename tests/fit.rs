@@ -399,3 +399,88 @@ fn an_owned_fit_reports_a_failed_remeasure() {
         "t: cannot measure the fit's errors: the input changed during the fit"
     );
 }
+
+/// The post-fit energy scale (`FitConfig::energy_scale`): read against the
+/// re-read table, it multiplies d and every s of channel C by the recorded
+/// k_C, so the model's every value scales by k_C; off, the fit is the plain
+/// one; by default a trusted table (this synthetic one) is left alone.
+#[test]
+fn the_energy_scale_scales_each_channel_by_the_recorded_ratio() {
+    let truth = known_factor_model(Layout::default(), &[0.05, 0.2, 0.5]);
+    let table = to_merl(&truth);
+    // The "re-read" table reflects more red and less blue light than the
+    // fitted samples: what a fit that lands low on its table's energy sees.
+    let k = [1.2, 1.0, 0.9];
+    let brighter = MerlTable::from_fn(|th, td, pd| {
+        let a = npf::loaders::geometry::Angles::from_half_diff(th, 0.0, td, pd);
+        (a.theta_i.cos() > 0.0 && a.theta_o.cos() > 0.0).then(|| {
+            let v = truth.eval_angles(&a);
+            std::array::from_fn(|c| v[c] * k[c])
+        })
+    });
+    let run = |scale: Option<bool>| {
+        let config = npf::fit::FitConfig {
+            lobes: 1,
+            max_sweeps: 2,
+            coarse: vec![],
+            energy_scale: scale,
+            ..Default::default()
+        };
+        let reread = || Ok(npf::loaders::Table::Merl(brighter.clone()));
+        npf::fit::fit_owned(table.samples("t"), reread, &config, &mut |_, _| {}).unwrap()
+    };
+    let (on, off, default) = (run(Some(true)), run(Some(false)), run(None));
+    let record = |f: &npf::fit::Fitted| {
+        f.info
+            .selection
+            .as_ref()
+            .unwrap()
+            .get("energy_scale")
+            .cloned()
+    };
+    assert!(record(&off).is_none() && record(&default).is_none());
+    assert_eq!(default.result.model, off.result.model);
+    let rec = record(&on).expect("a record");
+    assert_eq!(rec["applied"], true);
+    let got: Vec<f64> = rec["k"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    // The ratio is k times the plain fit's own ratio to its samples' table.
+    let rule = npf::energy::scale::DEFAULT_RULE;
+    let own = npf::energy::scale::energy_ratio(&table, 85.0, &rule, &off.result.model).unwrap();
+    for c in 0..3 {
+        assert!(
+            (got[c] / (k[c] * own[c]) - 1.0).abs() < 1e-9,
+            "{got:?} {own:?}"
+        );
+    }
+    // Every value of the scaled model is the plain model's times k_C.
+    for (ti, to, dphi) in [(0.2, 0.3, 0.5), (0.7, 0.1, 2.0), (1.1, 0.9, 3.0)] {
+        let a = npf::loaders::geometry::Angles::from_directions(
+            [f64::sin(ti), 0.0, f64::cos(ti)],
+            [
+                f64::sin(to) * f64::cos(dphi),
+                f64::sin(to) * f64::sin(dphi),
+                f64::cos(to),
+            ],
+        );
+        let (v_on, v_off) = (
+            on.result.model.eval_angles(&a),
+            off.result.model.eval_angles(&a),
+        );
+        for c in 0..3 {
+            assert!(
+                (v_on[c] - got[c] * v_off[c]).abs() <= 1e-6 * v_on[c].abs(),
+                "{v_on:?} {v_off:?}"
+            );
+        }
+    }
+    // The factors travel with the model.
+    assert_eq!(
+        on.result.factors.to_model().diffuse,
+        on.result.model.diffuse
+    );
+}

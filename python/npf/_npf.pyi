@@ -86,6 +86,7 @@ def fit(
     smooth_g: Optional[float] = None,
     d_monotone_from: Optional[float] = None,
     accelerate: Optional[bool] = None,
+    energy_scale: Optional[bool] = None,
     threads: int = 0,
     progress: Optional[Callable[[Dict[str, Any]], Any]] = None,
 ) -> Model: ...

@@ -915,8 +915,13 @@ fn parse_name<T: serde::de::DeserializeOwned>(
 
 /// The samples a fit reads: a path (MERL `.binary`; UTIA `.bin`) or a
 /// numpy MERL-shaped table.
-fn fit_samples(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<MeasuredSamples> {
-    let samples = if input.is_instance_of::<PyString>() || input.hasattr("__fspath__")? {
+/// The samples to fit and, for a MERL input, its table (what the fit's
+/// post-fit energy scale and error measures read, as in `npf fit`).
+fn fit_samples(
+    py: Python<'_>,
+    input: &Bound<'_, PyAny>,
+) -> PyResult<(MeasuredSamples, Option<MerlTable>)> {
+    let (samples, merl) = if input.is_instance_of::<PyString>() || input.hasattr("__fspath__")? {
         let path: PathBuf = input.extract()?;
         let source = path.display().to_string();
         let ext = path
@@ -924,9 +929,9 @@ fn fit_samples(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<MeasuredSam
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
         py.allow_threads(|| match ext.as_deref() {
-            Some("binary") => MerlTable::read(&path).map(|t| t.samples(&source)),
+            Some("binary") => MerlTable::read(&path).map(|t| (t.samples(&source), Some(t))),
             // Issue 12 (anisotropic fits) picks its layout here.
-            Some("bin") => UtiaTable::read(&path).map(|t| t.samples(&source)),
+            Some("bin") => UtiaTable::read(&path).map(|t| (t.samples(&source), None)),
             _ => Err(LoadError::invalid(
                 &path,
                 "unknown table format (use a MERL .binary or a UTIA .bin file)",
@@ -935,7 +940,7 @@ fn fit_samples(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<MeasuredSam
         .map_err(load_error)?
     } else {
         let table = table_from_numpy(input, false)?;
-        py.allow_threads(|| table.samples("<numpy table>"))
+        py.allow_threads(|| (table.samples("<numpy table>"), Some(table)))
     };
     if samples.samples.is_empty() {
         return Err(value_error(format!(
@@ -943,7 +948,7 @@ fn fit_samples(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<MeasuredSam
             samples.source
         )));
     }
-    Ok(samples)
+    Ok((samples, merl))
 }
 
 fn report_dict<'py>(py: Python<'py>, part: usize, r: &SweepReport) -> PyResult<Bound<'py, PyDict>> {
@@ -964,11 +969,14 @@ fn report_dict<'py>(py: Python<'py>, part: usize, r: &SweepReport) -> PyResult<B
 /// missing). Options left as None take npf's defaults (those of `npf fit`).
 /// `progress`, if given, is called with a dict after every sweep (part,
 /// sweep, objective, rel_decrease, elapsed, ...); an exception it raises is
-/// re-raised once the fit ends. The GIL is released while fitting.
+/// re-raised once the fit ends. `energy_scale` (None: untrusted tables
+/// only; True, False) is `npf fit --energy-scale`. The GIL is released
+/// while fitting.
 #[pyfunction]
 #[pyo3(signature = (table_or_path, lobes = 3, weighting = "compressive", *, model = "factor", nodes = 90,
     epsilon = None, max_theta = None, max_theta_h = None, max_sweeps = None, tol = None, g_method = None,
-    smooth_g = None, d_monotone_from = None, accelerate = None, threads = 0, progress = None))]
+    smooth_g = None, d_monotone_from = None, accelerate = None, energy_scale = None, threads = 0,
+    progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
@@ -986,6 +994,7 @@ fn fit(
     smooth_g: Option<f64>,
     d_monotone_from: Option<f64>,
     accelerate: Option<bool>,
+    energy_scale: Option<bool>,
     threads: usize,
     progress: Option<PyObject>,
 ) -> PyResult<PyModel> {
@@ -1017,6 +1026,7 @@ fn fit(
         coarse: d.coarse.clone(),
         coarse_tol: d.coarse_tol,
         gauss_newton: d.gauss_newton,
+        energy_scale,
         // The remaining options (grazing taper, masking, compensation) at
         // the library's defaults.
         ..d
@@ -1047,7 +1057,7 @@ fn fit(
     }
     // Checked before reading the input, so a bad option costs nothing.
     config.validate().map_err(display_error)?;
-    let samples = fit_samples(py, table_or_path)?;
+    let (samples, merl) = fit_samples(py, table_or_path)?;
     let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
     let fitted = py.allow_threads(|| {
         let mut observer = |part: usize, r: &SweepReport| {
@@ -1063,7 +1073,15 @@ fn fit(
                 }
             });
         };
-        npf::fit::fit(&samples, &config, &mut observer)
+        match merl {
+            Some(t) => npf::fit::fit_owned(
+                samples,
+                || Ok(npf::loaders::Table::Merl(t)),
+                &config,
+                &mut observer,
+            ),
+            None => npf::fit::fit(&samples, &config, &mut observer),
+        }
     });
     if let Some(e) = callback_error
         .into_inner()

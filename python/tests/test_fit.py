@@ -90,3 +90,21 @@ def test_bad_fit_options_raise_value_error(kwargs, message):
 def test_a_progress_that_is_not_callable_is_refused_before_fitting():
     with pytest.raises(TypeError, match="callable"):
         npf.fit(np.full((3, 90, 90, 180), 0.1), progress="yes")
+
+
+def test_energy_scale_is_read_from_the_table_as_in_the_cli():
+    # A table npf made itself is trusted: no scale by default; forced on,
+    # the record holds the per-channel ratio (applied only past 5 %).
+    table = known_factor_model((0.2,)).reconstruct()
+    opts = dict(lobes=1, max_sweeps=2)
+    plain = npf.fit(table, **opts)
+    assert "energy_scale" not in plain.fit_info["selection"]
+    forced = npf.fit(table, energy_scale=True, **opts)
+    record = forced.fit_info["selection"]["energy_scale"]
+    assert len(record["k"]) == 3 and all(k > 0 for k in record["k"])
+    assert record["applied"] == any(abs(k - 1) > record["dead_zone"] for k in record["k"])
+    if not record["applied"]:
+        assert forced.fit_info["objective"] == plain.fit_info["objective"]
+        z = np.array([0.0, 0.0, 1.0])
+        np.testing.assert_array_equal(forced.eval(z, z), plain.eval(z, z))
+    assert "energy_scale" not in npf.fit(table, energy_scale=False, **opts).fit_info["selection"]

@@ -96,6 +96,12 @@ pub struct FitFlags {
     /// [default: twice --tol]
     #[arg(long)]
     pub kept_g_tol: Option<f64>,
+    /// After the fit, scale d and every lobe's s per channel to the
+    /// table's energy (cells past theta_h = 5 deg; only when a channel is
+    /// off by more than 5 %): on, off (default: on for untrusted tables,
+    /// whose compressive fit reflects too little light; docs/fitting.md).
+    #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    pub energy_scale: Option<bool>,
     /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
     /// anisotropic tables only).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
@@ -172,6 +178,7 @@ impl FitFlags {
             pool_scale_below: Some(self.pool_scale_below).filter(|&d| d > 0.0),
             pool_scale_below_untrusted: Some(self.pool_scale_below_untrusted).filter(|&d| d > 0.0),
             compensate: self.compensate,
+            energy_scale: self.energy_scale,
         }
     }
 }

@@ -16,6 +16,8 @@ pub mod fit;
 /// GGX and Beckmann distributions and Smith terms in projected-area form.
 pub mod microfacet;
 pub mod quad;
+/// A fitted model's energy against its table's (the post-fit scale).
+pub mod scale;
 /// The seed's reflectance series and constants.
 pub mod series;
 /// A microsurface random-walk simulator.
