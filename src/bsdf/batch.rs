@@ -247,6 +247,10 @@ impl NpfBxdf {
         self.sample_slices_in::<F64x2x2>(flat, wo, u, out)
     }
 
+    /// Each group of four: the draws ([`NpfBxdf::draw4`]), their values
+    /// ([`FlatEval::eval4_view`], given the draws' view angles) and the
+    /// weights in lanes, straight into `out` (no pass over the slices in
+    /// between: the group's wi, pdf and values stay in registers).
     #[inline(always)]
     fn sample_slices_in<V: Lanes4>(
         &self,
@@ -256,7 +260,10 @@ impl NpfBxdf {
         out: &mut SampleBatch,
     ) {
         let n = wo.len();
-        self.draw_slices_in::<V>(wo, u, out);
+        // Every slice cut to n once (fewer bounds checks in the loop).
+        let [x, y, z] = wo.slices();
+        let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
+        let (u0, u1, u2) = (&u[0][..n], &u[1][..n], &u[2][..n]);
         let SampleBatch {
             wi,
             f,
@@ -264,49 +271,87 @@ impl NpfBxdf {
             weight,
             component,
         } = out;
-        let [f0, f1, f2] = f;
-        flat.eval_slices(wo.slices(), [&wi[0], &wi[1], &wi[2]], [f0, f1, f2]);
-        // Every slice cut to n once, so the loops have no bounds checks.
+        let [o0, o1, o2] = wi.each_mut().map(|v| &mut v[..n]);
         let [f0, f1, f2] = f.each_mut().map(|v| &mut v[..n]);
         let [w0, w1, w2] = weight.each_mut().map(|v| &mut v[..n]);
-        let [x, y, z] = wi.each_ref().map(|v| &v[..n]);
-        let (pdf, component) = (&mut pdf[..n], &component[..n]);
-        let four = n / 4 * 4;
-        for j in (0..four).step_by(4) {
-            // Lanes: BsdfSample::new's weight and test, in its order.
-            let (p, zj) = (V::load(quad(pdf, j)), V::load(quad(z, j)));
-            let k = zj / p;
-            let fs = [
-                V::load(quad(f0, j)),
-                V::load(quad(f1, j)),
-                V::load(quad(f2, j)),
+        let (pdf, component) = (&mut pdf[..n], &mut component[..n]);
+        let mut k = 0;
+        while k < n {
+            // The last group repeats its final draw in its unused slots.
+            // Written out: `[..].map(..)` compiled to out-of-line calls here.
+            let at = [
+                k,
+                (k + 1).min(n - 1),
+                (k + 2).min(n - 1),
+                (k + 3).min(n - 1),
             ];
-            f0[j..j + 4].copy_from_slice(&kept(p, zj, fs[0]).to_array());
-            f1[j..j + 4].copy_from_slice(&kept(p, zj, fs[1]).to_array());
-            f2[j..j + 4].copy_from_slice(&kept(p, zj, fs[2]).to_array());
-            w0[j..j + 4].copy_from_slice(&kept(p, zj, fs[0] * k).to_array());
-            w1[j..j + 4].copy_from_slice(&kept(p, zj, fs[1] * k).to_array());
-            w2[j..j + 4].copy_from_slice(&kept(p, zj, fs[2] * k).to_array());
-            pdf[j..j + 4].copy_from_slice(&kept(p, zj, p).to_array());
-        }
-        for j in four..n {
-            // BsdfSample::new's weight and checks; a lost draw (pdf 0)
-            // gets zero value and weight, as the per-call sample reports it.
-            let s = BsdfSample::new(
-                [x[j], y[j], z[j]],
-                [f0[j], f1[j], f2[j]],
-                pdf[j],
-                component[j],
+            let wo4 = [
+                [x[at[0]], y[at[0]], z[at[0]]],
+                [x[at[1]], y[at[1]], z[at[1]]],
+                [x[at[2]], y[at[2]], z[at[2]]],
+                [x[at[3]], y[at[3]], z[at[3]]],
+            ];
+            let d = self.draw4::<V>(
+                wo4,
+                [u0[at[0]], u0[at[1]], u0[at[2]], u0[at[3]]],
+                [
+                    [u1[at[0]], u2[at[0]]],
+                    [u1[at[1]], u2[at[1]]],
+                    [u1[at[2]], u2[at[2]]],
+                    [u1[at[3]], u2[at[3]]],
+                ],
             );
-            (pdf[j], [f0[j], f1[j], f2[j]], [w0[j], w1[j], w2[j]]) = (s.pdf, s.f, s.weight);
+            let wi4 = [
+                [d.wi[0][0], d.wi[1][0], d.wi[2][0]],
+                [d.wi[0][1], d.wi[1][1], d.wi[2][1]],
+                [d.wi[0][2], d.wi[1][2], d.wi[2][2]],
+                [d.wi[0][3], d.wi[1][3], d.wi[2][3]],
+            ];
+            let v = flat.eval4_view::<V>(wo4, wi4, Some(V::load(&d.theta_o)));
+            // Lanes: BsdfSample::new's weight and test, in its order; a lost
+            // draw (pdf 0) gets zero value and weight, as the per-call
+            // sample reports it.
+            let (p, zj) = (V::load(&d.pdf), V::load(&d.wi[2]));
+            let q = zj / p;
+            let fs = [
+                V::load(&[v[0][0], v[1][0], v[2][0], v[3][0]]),
+                V::load(&[v[0][1], v[1][1], v[2][1], v[3][1]]),
+                V::load(&[v[0][2], v[1][2], v[2][2], v[3][2]]),
+            ];
+            let rows = [
+                kept(p, zj, fs[0]).to_array(),
+                kept(p, zj, fs[1]).to_array(),
+                kept(p, zj, fs[2]).to_array(),
+                kept(p, zj, fs[0] * q).to_array(),
+                kept(p, zj, fs[1] * q).to_array(),
+                kept(p, zj, fs[2] * q).to_array(),
+                kept(p, zj, p).to_array(),
+            ];
+            if k + 4 <= n {
+                // Fixed lengths: stores, not memcpy calls.
+                let e = k + 4;
+                o0[k..e].copy_from_slice(&d.wi[0]);
+                o1[k..e].copy_from_slice(&d.wi[1]);
+                o2[k..e].copy_from_slice(&d.wi[2]);
+                f0[k..e].copy_from_slice(&rows[0]);
+                f1[k..e].copy_from_slice(&rows[1]);
+                f2[k..e].copy_from_slice(&rows[2]);
+                w0[k..e].copy_from_slice(&rows[3]);
+                w1[k..e].copy_from_slice(&rows[4]);
+                w2[k..e].copy_from_slice(&rows[5]);
+                pdf[k..e].copy_from_slice(&rows[6]);
+                component[k..e].copy_from_slice(&d.component);
+            } else {
+                for j in 0..n - k {
+                    (o0[k + j], o1[k + j], o2[k + j]) = (d.wi[0][j], d.wi[1][j], d.wi[2][j]);
+                    (f0[k + j], f1[k + j], f2[k + j]) = (rows[0][j], rows[1][j], rows[2][j]);
+                    (w0[k + j], w1[k + j], w2[k + j]) = (rows[3][j], rows[4][j], rows[5][j]);
+                    (pdf[k + j], component[k + j]) = (rows[6][j], d.component[j]);
+                }
+            }
+            k += 4;
         }
     }
-}
-
-/// Entries j..j + 4 of a slice (j + 4 at most its length).
-#[inline(always)]
-fn quad(v: &[f64], j: usize) -> &[f64; 4] {
-    v[j..j + 4].try_into().expect("four entries")
 }
 
 /// `v` where a draw carries light (0 < pdf < infinity and 0 < wi.z, the
@@ -319,60 +364,6 @@ fn kept<V: Lanes4>(pdf: V, wi_z: V, v: V) -> V {
         pdf.lt_select(inf, zero.lt_select(wi_z, v, zero), zero),
         zero,
     )
-}
-
-impl NpfBxdf {
-    /// The draws of `sample_batch` in lane type V into `out` (wi, pdf and
-    /// component of each entry; `out` already has `wo`'s length), four at
-    /// a time by [`NpfBxdf::draw4`]; a lost draw gets pdf 0.
-    #[inline(always)]
-    fn draw_slices_in<V: Lanes4>(&self, wo: Directions, u: [&[f64]; 3], out: &mut SampleBatch) {
-        let n = wo.len();
-        // Every slice cut to n once (fewer bounds checks in the loop).
-        let [x, y, z] = wo.slices();
-        let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
-        let (u0, u1, u2) = (&u[0][..n], &u[1][..n], &u[2][..n]);
-        let SampleBatch {
-            wi, pdf, component, ..
-        } = out;
-        let [o0, o1, o2] = wi;
-        let (o0, o1, o2) = (&mut o0[..n], &mut o1[..n], &mut o2[..n]);
-        let (pdf, component) = (&mut pdf[..n], &mut component[..n]);
-        let mut k = 0;
-        while k < n {
-            // The last group repeats its final draw in its unused slots.
-            // Written out: `[..].map(..)` compiled to out-of-line calls here.
-            let at = [
-                k,
-                (k + 1).min(n - 1),
-                (k + 2).min(n - 1),
-                (k + 3).min(n - 1),
-            ];
-            let drawn = self.draw4::<V>(
-                [
-                    [x[at[0]], y[at[0]], z[at[0]]],
-                    [x[at[1]], y[at[1]], z[at[1]]],
-                    [x[at[2]], y[at[2]], z[at[2]]],
-                    [x[at[3]], y[at[3]], z[at[3]]],
-                ],
-                [u0[at[0]], u0[at[1]], u0[at[2]], u0[at[3]]],
-                [
-                    [u1[at[0]], u2[at[0]]],
-                    [u1[at[1]], u2[at[1]]],
-                    [u1[at[2]], u2[at[2]]],
-                    [u1[at[3]], u2[at[3]]],
-                ],
-            );
-            // The value comes later; pdf and wi as drawn for now.
-            let m = (n - k).min(4);
-            o0[k..k + m].copy_from_slice(&drawn.wi[0][..m]);
-            o1[k..k + m].copy_from_slice(&drawn.wi[1][..m]);
-            o2[k..k + m].copy_from_slice(&drawn.wi[2][..m]);
-            pdf[k..k + m].copy_from_slice(&drawn.pdf[..m]);
-            component[k..k + m].copy_from_slice(&drawn.component[..m]);
-            k += 4;
-        }
-    }
 }
 
 #[cfg(test)]

@@ -745,6 +745,7 @@ impl NpfBxdf {
             wi: [[0.0; 4], [0.0; 4], [1.0; 4]],
             pdf: [0.0; 4],
             component: [Component::Diffuse; 4],
+            theta_o: theta,
         };
         // Lanes of other draws get a harmless lobe draw, then discarded.
         let (mut t, mut sign, mut dv) = ([0.0; 4], [1.0; 4], [0.5; 4]);
@@ -990,6 +991,9 @@ pub(crate) struct Drawn4 {
     pub wi: [[f64; 4]; 3],
     pub pdf: [f64; 4],
     pub component: [Component; 4],
+    /// The views' angles, `acos_lanes` of wo.z clamped to [0, 1] (what
+    /// `FlatEval::eval4_view` takes).
+    pub theta_o: [f64; 4],
 }
 
 /// What the lobe Jacobian is made of, from s = wi + wo (h's direction,

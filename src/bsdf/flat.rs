@@ -15,7 +15,7 @@
 
 use super::f64x2::{floor_index, F64x2};
 use super::lanes::{F64x2x2, Lanes, Lanes4};
-use crate::grid::axis::linear_weights;
+use crate::grid::axis::{linear_weights, SNAP};
 use crate::grid::Axis;
 use crate::model::Model;
 use npf_data_loaders::geometry::Vec3;
@@ -114,11 +114,80 @@ impl FlatTable {
     /// once (x their `theta / (pi/2)`, clamped, in lanes): the same
     /// operations lane by lane.
     #[inline(always)]
-    fn coords<V: Lanes4>(&self, theta: &[f64; 4], x: V) -> [f64; 4] {
+    fn coords<V: Lanes4>(&self, theta: &[f64; 4], x: V) -> V {
         match self.axis {
-            Axis::SqrtAngle { .. } => (x.sqrt() * V::splat(self.scale)).to_array(),
-            Axis::Uniform { .. } | Axis::CatmullRom { .. } => (x * V::splat(self.scale)).to_array(),
-            Axis::Squared { .. } | Axis::Closed { .. } => theta.map(|t| self.axis.coord(t)),
+            Axis::SqrtAngle { .. } => x.sqrt() * V::splat(self.scale),
+            Axis::Uniform { .. } | Axis::CatmullRom { .. } => x * V::splat(self.scale),
+            Axis::Squared { .. } | Axis::Closed { .. } => {
+                V::load(&theta.map(|t| self.axis.coord(t)))
+            }
+        }
+    }
+
+    /// The stencils [`FlatTable::eval_at`] builds, for four coordinates at
+    /// once in lanes (p never NaN: the coordinates of clamped x): the
+    /// same index and weights per lane, so [`FlatTable::eval_stencil`]
+    /// gives `eval_at`'s values bit for bit. A linear axis's
+    /// (first padded row, w0, w1), `grid::axis::linear_weights`' snapping
+    /// included; a Catmull-Rom axis's (interval, t, unused).
+    #[inline(always)]
+    fn stencils<V: Lanes4>(&self, p: V) -> Stencils4 {
+        let (zero, one) = (V::splat(0.0), V::splat(1.0));
+        match self.axis {
+            Axis::CatmullRom { .. } => {
+                let i = p.floor_index().min(V::splat((self.cubic.len() - 1) as f64));
+                // clamp(0, 1) (p - i is never -0 or NaN here).
+                let t = (p - i).max(zero).min(one);
+                Stencils4 {
+                    at: i.to_u32(),
+                    w0: t.to_array(),
+                    w1: [0.0; 4],
+                }
+            }
+            Axis::SqrtAngle { n }
+            | Axis::Uniform { n }
+            | Axis::Squared { n }
+            | Axis::Closed { n } => {
+                if n == 1 {
+                    return Stencils4 {
+                        at: [PAD_BEFORE as u32; 4],
+                        w0: [1.0; 4],
+                        w1: [0.0; 4],
+                    };
+                }
+                let last = (n - 1) as u32 as f64;
+                let i = p.floor_index();
+                let t = p - i;
+                let (snap, top) = (V::splat(SNAP), V::splat(1.0 - SNAP));
+                // Within SNAP of node i: it alone; of node i + 1: that alone.
+                let w0 = t.lt_select(snap, one, top.lt_select(t, one, one - t));
+                let w1 = t.lt_select(snap, zero, top.lt_select(t, zero, t));
+                let at = top.lt_select(t, i + one, i);
+                // At or past last - SNAP: the last node alone.
+                let end = V::splat(last - SNAP);
+                let w0 = p.lt_select(end, w0, one);
+                let w1 = p.lt_select(end, w1, zero);
+                let at = p.lt_select(end, at, V::splat(last)) + V::splat(PAD_BEFORE as f64);
+                Stencils4 {
+                    at: at.to_u32(),
+                    w0: w0.to_array(),
+                    w1: w1.to_array(),
+                }
+            }
+        }
+    }
+
+    /// Every lane's value at lane k of [`FlatTable::stencils`].
+    #[inline(always)]
+    fn eval_stencil<V: Lanes4>(&self, s: &Stencils4, k: usize) -> V {
+        let at = s.at[k] as usize;
+        match self.axis {
+            Axis::CatmullRom { .. } => {
+                let t = V::splat(s.w0[k]);
+                let c = &self.cubic[at];
+                ((V::load(&c[3]) * t + V::load(&c[2])) * t + V::load(&c[1])) * t + V::load(&c[0])
+            }
+            _ => self.lerp((at, s.w0[k], s.w1[k])),
         }
     }
 
@@ -156,6 +225,14 @@ impl FlatTable {
         let [a, b] = self.eval(theta, x);
         [a.lo(), a.hi(), b.lo(), b.hi()]
     }
+}
+
+/// Four lanes' stencils on one table (see [`FlatTable::stencils`]).
+#[derive(Clone, Copy, Debug)]
+struct Stencils4 {
+    at: [u32; 4],
+    w0: [f64; 4],
+    w1: [f64; 4],
 }
 
 /// The Catmull-Rom weights of `grid::axis` on interval i of n nodes as
@@ -332,6 +409,19 @@ impl FlatEval {
     // would then be calls instead of instructions.
     #[inline(always)]
     pub(crate) fn eval4<V: Lanes4>(&self, wo: [Vec3; 4], wi: [Vec3; 4]) -> [[f64; 3]; 4] {
+        self.eval4_view::<V>(wo, wi, None)
+    }
+
+    /// [`FlatEval::eval4`] given, optionally, the views' angles `theta_o`
+    /// (lane k `acos_lanes` of wo[k]'s z clamped to [0, 1], as a batch
+    /// draw has them): the same values, one arccosine chain less.
+    #[inline(always)]
+    pub(crate) fn eval4_view<V: Lanes4>(
+        &self,
+        wo: [Vec3; 4],
+        wi: [Vec3; 4],
+        theta_o: Option<V>,
+    ) -> [[f64; 3]; 4] {
         // Written out: `[0, 1, 2, 3].map(..)` compiled to an out-of-line
         // call (with a vzeroupper) in the AVX2 kernel.
         let valid = [
@@ -356,20 +446,34 @@ impl FlatEval {
         let c_h = s2 / n;
         let c_d = (ix * s0 + iy * s1 + iz * s2) / n;
         let ((t_h, x_h), (t_d, x_d)) = (angle_and_x(c_h), angle_and_x(c_d));
-        let ((t_i, x_i), (t_o, x_o)) = (angle_and_x(iz), angle_and_x(oz));
+        // A valid lane's wo.z is in (0, inf), where clamping to [0, 1]
+        // equals `column`'s value clamped: the same angle (invalid lanes'
+        // results are discarded).
+        let (t_i, x_i) = angle_and_x(iz);
+        let (t_o, x_o) = match theta_o {
+            Some(t) => angle_x_of(t),
+            None => angle_and_x(oz),
+        };
         // The axis coordinates in lanes too (D's square root among them).
-        let (p_h, p_d) = (self.d.coords(&t_h, x_h), self.f.coords(&t_d, x_d));
-        let (p_i, p_o) = (self.g.coords(&t_i, x_i), self.g.coords(&t_o, x_o));
+        // The stencils in lanes too (`eval_at`'s, lane by lane).
+        let (s_h, s_d) = (
+            self.d.stencils(self.d.coords(&t_h, x_h)),
+            self.f.stencils(self.f.coords(&t_d, x_d)),
+        );
+        let (s_i, s_o) = (
+            self.g.stencils(self.g.coords(&t_i, x_i)),
+            self.g.stencils(self.g.coords(&t_o, x_o)),
+        );
         let inv_cc = (one / (iz.min(one) * oz.min(one))).to_array();
         let mut out = [[0.0; 3]; 4];
         for k in 0..4 {
             if !valid[k] {
                 continue;
             }
-            let d: V = self.d.eval_at(p_h[k]);
-            let f: V = self.f.eval_at(p_d[k]);
-            let gi: V = self.g.eval_at(p_i[k]);
-            let go: V = self.g.eval_at(p_o[k]);
+            let d: V = self.d.eval_stencil(&s_h, k);
+            let f: V = self.f.eval_stencil(&s_d, k);
+            let gi: V = self.g.eval_stencil(&s_i, k);
+            let go: V = self.g.eval_stencil(&s_o, k);
             let spec = (d * (gi * go * V::splat(inv_cc[k]))).to_array();
             // Channels in lanes, the lobe terms summed pairwise (eval's
             // order).
@@ -447,7 +551,13 @@ fn column<V: Lanes4>(v: &[Vec3; 4], valid: &[bool; 4], c: usize) -> V {
 #[inline(always)]
 fn angle_and_x<V: Lanes4>(c: V) -> ([f64; 4], V) {
     let (zero, one) = (V::splat(0.0), V::splat(1.0));
-    let t = acos_lanes(c.max(zero).min(one));
+    angle_x_of(acos_lanes(c.max(zero).min(one)))
+}
+
+/// Angles t and their x = t / (pi/2) clamped to [0, 1].
+#[inline(always)]
+fn angle_x_of<V: Lanes4>(t: V) -> ([f64; 4], V) {
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
     (t.to_array(), (t * V::splat(FRAC_2_PI)).max(zero).min(one))
 }
 
@@ -629,6 +739,66 @@ mod tests {
                 } else {
                     assert_eq!(a, b, "{axis:?} node {k}");
                 }
+            }
+        }
+    }
+
+    /// Coordinates at, near and between nodes (inside and outside SNAP)
+    /// and at and past the last node.
+    fn stencil_coordinates(n: usize) -> Vec<f64> {
+        let last = (n - 1) as f64;
+        let mut p = vec![0.0, 1e-9, 0.3, last, last - 1e-8, last - 1e-6, last + 0.5];
+        for k in 0..n {
+            let k = k as f64;
+            p.extend([
+                k,
+                k + 5e-8,
+                k - 5e-8,
+                k + 2e-7,
+                k - 2e-7,
+                k + 0.5,
+                k + 0.999,
+            ]);
+        }
+        p.retain(|&x| (0.0..=last + 0.5).contains(&x));
+        p
+    }
+
+    fn check_stencils<V: Lanes4>(t: &FlatTable, p: &[f64]) {
+        for q in p.chunks(4) {
+            let q: Vec<f64> = (0..4).map(|k| q[k.min(q.len() - 1)]).collect();
+            let s = t.stencils(V::load(&[q[0], q[1], q[2], q[3]]));
+            for (k, &x) in q.iter().enumerate() {
+                let (a, b) = (t.eval_stencil::<V>(&s, k), t.eval_at::<V>(x));
+                let bits = |v: V| v.to_array().map(f64::to_bits);
+                assert_eq!(bits(a), bits(b), "{:?} p = {x}", t.axis);
+            }
+        }
+    }
+
+    #[test]
+    fn lane_stencils_are_the_per_call_ones_bit_for_bit() {
+        for axis in [
+            Axis::SqrtAngle { n: 90 },
+            Axis::Uniform { n: 30 },
+            Axis::Squared { n: 12 },
+            Axis::Closed { n: 7 },
+            Axis::CatmullRom { n: 90 },
+            Axis::CatmullRom { n: 2 },
+            Axis::Uniform { n: 1 },
+        ] {
+            let values: Vec<f32> = (0..axis.len()).map(|k| 1.0 + (k * k % 7) as f32).collect();
+            let t = FlatTable::new(axis, &[&values, &values]);
+            let p = stencil_coordinates(axis.len());
+            check_stencils::<F64x2x2>(&t, &p);
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                #[target_feature(enable = "avx2")]
+                fn avx(t: &FlatTable, p: &[f64]) {
+                    check_stencils::<crate::bsdf::lanes::avx::F64x4>(t, p)
+                }
+                // SAFETY: AVX2 was detected.
+                unsafe { avx(&t, &p) };
             }
         }
     }

@@ -6,7 +6,7 @@
 //! values whichever lane type runs it: the batch evaluator (lanes across
 //! directions, or across lobes) equals the per-call one exactly.
 
-use super::f64x2::F64x2;
+use super::f64x2::{floor_index, trunc_i32, F64x2};
 use std::ops::{Add, Div, Mul, Sub};
 
 /// Lanes of f64 with lane-wise IEEE arithmetic.
@@ -31,6 +31,10 @@ pub(crate) trait Lanes4: Lanes {
     fn load(r: &[f64; 4]) -> Self;
     /// The four lanes.
     fn to_array(self) -> [f64; 4];
+    /// `f64x2::floor_index` of each lane, as f64 (exact).
+    fn floor_index(self) -> Self;
+    /// Lanes holding whole numbers in [0, 2^31) as integers.
+    fn to_u32(self) -> [u32; 4];
 }
 
 impl Lanes for F64x2 {
@@ -155,6 +159,14 @@ impl Lanes4 for F64x2x2 {
             self.0[1].hi(),
         ]
     }
+    #[inline(always)]
+    fn floor_index(self) -> Self {
+        Self::load(&self.to_array().map(|x| floor_index(x) as u32 as f64))
+    }
+    #[inline(always)]
+    fn to_u32(self) -> [u32; 4] {
+        self.to_array().map(|x| trunc_i32(x) as u32)
+    }
 }
 
 /// AVX lanes, for code compiled inside a `#[target_feature(enable =
@@ -228,6 +240,23 @@ pub(crate) mod avx {
             unsafe { _mm256_storeu_pd(r.as_mut_ptr(), self.0) };
             r
         }
+        #[inline(always)]
+        fn floor_index(self) -> Self {
+            // Truncation (i32::MIN for NaN or out of range, as
+            // `trunc_i32`), at least 0, back to f64.
+            unsafe {
+                let i = _mm_max_epi32(_mm256_cvttpd_epi32(self.0), _mm_setzero_si128());
+                F64x4(_mm256_cvtepi32_pd(i))
+            }
+        }
+        #[inline(always)]
+        fn to_u32(self) -> [u32; 4] {
+            let mut r = [0u32; 4];
+            unsafe {
+                _mm_storeu_si128(r.as_mut_ptr().cast(), _mm256_cvttpd_epi32(self.0));
+            }
+            r
+        }
     }
 }
 
@@ -248,6 +277,12 @@ mod tests {
         assert_eq!(a.max(b).to_array(), [1.5, 7.0, 1.0, 4.0]);
         assert_eq!(a.lt_select(b, a, b).to_array()[..3], [0.3, -2.25, 1.0]);
         assert_eq!(V::splat(2.0).to_array(), [2.0; 4]);
+        let x = V::load(&[-3.5, 2.999_999_999, f64::NAN, 1e300]);
+        let fi = x.floor_index().to_array();
+        let want = [-3.5, 2.999_999_999, f64::NAN, 1e300].map(|v| floor_index(v) as f64);
+        assert_eq!(fi, want);
+        assert_eq!(fi, [0.0, 2.0, 0.0, 0.0]);
+        assert_eq!(V::load(&[0.0, 7.0, 89.0, 3.0]).to_u32(), [0, 7, 89, 3]);
     }
 
     #[test]

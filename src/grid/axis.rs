@@ -186,7 +186,7 @@ fn squared_last(n: usize) -> f64 {
 
 /// Snap to a node when a coordinate is within rounding of it, so samples on
 /// the grid (MERL's theta_h and theta_d) touch exactly one cell.
-const SNAP: f64 = 1e-7;
+pub(crate) const SNAP: f64 = 1e-7;
 
 fn linear_stencil(p: f64, n: usize) -> Stencil {
     match linear_weights(p, n) {
