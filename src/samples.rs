@@ -897,66 +897,52 @@ impl FitSet {
         let (mut y, mut w) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         let mut pair_share = vec![[0.0; 3]; n];
         let (mut inv_cc, mut dirs) = (vec![0.0; n], vec![[0.0f32; 3]; n]);
-        let mut d_st = StencilTable::zeroed(dg.stencil_width(), n);
-        let mut f_st = StencilTable::zeroed(fg.stencil_width(), n);
-        let mut gi_st = StencilTable::zeroed(gg.stencil_width(), n);
-        let mut go_st = StencilTable::zeroed(gg.stencil_width(), n);
-        // The pass also writes every stencil (the same values as one pass
-        // per table over gathered angles, without the 64-byte-a-sample
-        // array of angles and its four re-reads).
+        // Each merged sample's first member: the stencils are computed from
+        // it once the sort's arrays are freed (4 bytes a sample held across
+        // them, not its 64 bytes of angles).
+        let mut first_of = vec![0u32; n];
         (
             y.par_chunks_mut(PIECE),
             w.par_chunks_mut(PIECE),
             pair_share.par_chunks_mut(PIECE),
             inv_cc.par_chunks_mut(PIECE),
             dirs.par_chunks_mut(PIECE),
-            d_st.par_pieces_mut(PIECE),
-            f_st.par_pieces_mut(PIECE),
-            gi_st.par_pieces_mut(PIECE),
-            go_st.par_pieces_mut(PIECE),
+            first_of.par_chunks_mut(PIECE),
         )
             .into_par_iter()
             .enumerate()
-            .for_each(
-                |(c, (y, w, share, inv_cc, dirs, mut d, mut f, mut gi, mut go))| {
-                    for k in 0..y.len() {
-                        let g = c * PIECE + k;
-                        // The first members a few runs ahead: their records
-                        // are scattered over the input, so each read would
-                        // otherwise wait on memory.
-                        if let Some(&ahead) = starts.get(g + PREFETCH_RUNS) {
-                            prefetch_sample(&samples.samples, order[ahead].1);
-                            if let Some(&(_, partner)) = order.get(ahead + 1) {
-                                prefetch_sample(&samples.samples, partner);
-                            }
+            .for_each(|(c, (y, w, share, inv_cc, dirs, first_of))| {
+                for k in 0..y.len() {
+                    let g = c * PIECE + k;
+                    // The first members a few runs ahead: their records
+                    // are scattered over the input, so each read would
+                    // otherwise wait on memory.
+                    if let Some(&ahead) = starts.get(g + PREFETCH_RUNS) {
+                        prefetch_sample(&samples.samples, order[ahead].1);
+                        if let Some(&(_, partner)) = order.get(ahead + 1) {
+                            prefetch_sample(&samples.samples, partner);
                         }
-                        let members = &order[run(g)];
-                        let first = &samples.samples[members[0].1 as usize];
-                        let a = first.angles;
-                        let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
-                        let (ti, pi, to, po) = if a.theta_i > a.theta_o {
-                            (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
-                        } else {
-                            (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
-                        };
-                        inv_cc[k] = 1.0 / (ci * co);
-                        dirs[k] = [ti as f32, to as f32, (pi - po).cos() as f32];
-                        (y[k], w[k]) = value_at(first, ci);
-                        for &(_, index) in &members[1..] {
-                            let (ry, rw) = value(index);
-                            share[k] = merge_into(&mut y[k], &mut w[k], ry, rw);
-                        }
-                        let d_theta = fold_tail(dg.theta.stencil(a.theta_h), d_free, |_| 1.0);
-                        d.store(k, &dg.extend(d_theta, a.phi_h));
-                        f.store(k, &fg.stencil(a.theta_d, a.phi_d));
-                        let gi_theta = fold_tail(gg.theta.stencil(ti), g_free, g_ramp);
-                        gi.store(k, &gg.extend(gi_theta, pi));
-                        let go_theta = fold_tail(gg.theta.stencil(to), g_free, g_ramp);
-                        go.store(k, &gg.extend(go_theta, po));
                     }
-                },
-            );
-        lap.done("merge + gather + stencils");
+                    let members = &order[run(g)];
+                    first_of[k] = members[0].1;
+                    let first = &samples.samples[members[0].1 as usize];
+                    let a = first.angles;
+                    let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
+                    let (ti, pi, to, po) = if a.theta_i > a.theta_o {
+                        (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
+                    } else {
+                        (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
+                    };
+                    inv_cc[k] = 1.0 / (ci * co);
+                    dirs[k] = [ti as f32, to as f32, (pi - po).cos() as f32];
+                    (y[k], w[k]) = value_at(first, ci);
+                    for &(_, index) in &members[1..] {
+                        let (ry, rw) = value(index);
+                        share[k] = merge_into(&mut y[k], &mut w[k], ry, rw);
+                    }
+                }
+            });
+        lap.done("merge + gather");
         // Each merged partner's share of the offset, summed in input order:
         // `share_of[index]` names where the share of input sample `index`
         // is (a pair's in `pair_share`, a longer run's in `run_shares`).
@@ -994,6 +980,40 @@ impl FitSet {
         drop((pair_share, share_of, run_shares));
         drop((sorted, starts));
         lap.done("shares + offset");
+        let mut d_st = StencilTable::zeroed(dg.stencil_width(), n);
+        let mut f_st = StencilTable::zeroed(fg.stencil_width(), n);
+        let mut gi_st = StencilTable::zeroed(gg.stencil_width(), n);
+        let mut go_st = StencilTable::zeroed(gg.stencil_width(), n);
+        (
+            first_of.par_chunks(PIECE),
+            d_st.par_pieces_mut(PIECE),
+            f_st.par_pieces_mut(PIECE),
+            gi_st.par_pieces_mut(PIECE),
+            go_st.par_pieces_mut(PIECE),
+        )
+            .into_par_iter()
+            .for_each(|(first_of, mut d, mut f, mut gi, mut go)| {
+                for (k, &index) in first_of.iter().enumerate() {
+                    if let Some(&ahead) = first_of.get(k + PREFETCH_RUNS) {
+                        prefetch_sample(&samples.samples, ahead);
+                    }
+                    let a = samples.samples[index as usize].angles;
+                    let ((ti, pi), (to, po)) = if a.theta_i > a.theta_o {
+                        ((a.theta_o, a.phi_o), (a.theta_i, a.phi_i))
+                    } else {
+                        ((a.theta_i, a.phi_i), (a.theta_o, a.phi_o))
+                    };
+                    let d_theta = fold_tail(dg.theta.stencil(a.theta_h), d_free, |_| 1.0);
+                    d.store(k, &dg.extend(d_theta, a.phi_h));
+                    f.store(k, &fg.stencil(a.theta_d, a.phi_d));
+                    let gi_theta = fold_tail(gg.theta.stencil(ti), g_free, g_ramp);
+                    gi.store(k, &gg.extend(gi_theta, pi));
+                    let go_theta = fold_tail(gg.theta.stencil(to), g_free, g_ramp);
+                    go.store(k, &gg.extend(go_theta, po));
+                }
+            });
+        drop(first_of);
+        lap.done("stencils");
         let mut set = FitSet {
             layout,
             options,
