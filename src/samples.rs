@@ -885,10 +885,10 @@ impl FitSet {
         // value and weights, and for a pair (the usual run: a configuration
         // and its reciprocal) the partner's share of the offset. Longer runs
         // (rare) have their shares computed below.
-        // The same pass gathers each merged sample's angles with theta_i <=
-        // theta_o (G(in) G(out) is symmetric in the two directions, and
-        // azimuths travel with their elevation) and its geometric terms,
-        // reading each first member once.
+        // The same pass writes each merged sample's geometric terms, with
+        // theta_i <= theta_o (G(in) G(out) is symmetric in the two
+        // directions, and azimuths travel with their elevation), and its
+        // first member's index, from which the stencils are computed later.
         let g_free = last_free_g_node(&layout, cut);
         let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
         let n_g = layout.g.n_theta();
