@@ -575,8 +575,8 @@ fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stenc
 /// A sample's sort key: (theta_i, theta_o) ordered so that theta_i <=
 /// theta_o, then theta_h, theta_d, each quantised to 1e-7 rad; packed
 /// 32 bits a component (order-preserving for any angle below 214 rad), so
-/// the sort moves 32-byte (key, index) pairs instead of whole records.
-fn sort_key(a: &npf_data_loaders::geometry::Angles) -> u128 {
+/// the sort moves 24-byte (key, index) pairs instead of whole records.
+fn sort_key(a: &npf_data_loaders::geometry::Angles) -> Key {
     let q = |x: f64| {
         let v = round_to_i64(x * 1e7).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         (v as u32 ^ 0x8000_0000) as u128
@@ -586,34 +586,49 @@ fn sort_key(a: &npf_data_loaders::geometry::Angles) -> u128 {
     } else {
         (a.theta_i, a.theta_o)
     };
-    q(lo) << 96 | q(hi) << 64 | q(a.theta_h) << 32 | q(a.theta_d)
+    Key::from(q(lo) << 96 | q(hi) << 64 | q(a.theta_h) << 32 | q(a.theta_d))
 }
 
-/// `pairs` in ascending order, as `par_sort_unstable` leaves them (the pairs
-/// are distinct, so the order is total and unique). A counting pass
-/// distributes them into buckets by the top 32 bits of the key (theta_i's
-/// quantised value), chunk by chunk in input order, then each bucket (a few
-/// hundred pairs, cache resident) is sorted on its own, in parallel: about
-/// half the work of a comparison sort of the whole array.
-fn bucket_sort(pairs: Vec<(u128, u32)>) -> Vec<(u128, u32)> {
-    const CHUNK: usize = 1 << 16;
-    let top = |p: &(u128, u32)| (p.0 >> 96) as u32;
-    let (lo, hi) = pairs
+/// A 128-bit sort key as two 64-bit halves, high first: the same order as
+/// the u128, but 8-byte aligned, so a (key, index) pair takes 24 bytes, not
+/// 32, through the key pass, the sort and the merge.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+struct Key(u64, u64);
+
+impl From<u128> for Key {
+    fn from(k: u128) -> Self {
+        Key((k >> 64) as u64, k as u64)
+    }
+}
+
+/// Input samples per chunk of the key pass (and of the bucket sort's passes).
+const KEY_CHUNK: usize = 1 << 16;
+
+/// The pairs of `chunks` (concatenated) in ascending order, as
+/// `par_sort_unstable` leaves them (the pairs are distinct, so the order
+/// is total and unique). A counting pass distributes them into buckets by
+/// the top 32 bits of the key (theta_i's quantised value), chunk by chunk
+/// in input order, then each bucket (a few hundred pairs, cache resident)
+/// is sorted on its own, in parallel: about half the work of a comparison
+/// sort of the whole array.
+fn bucket_sort(chunks: Vec<Vec<(Key, u32)>>) -> Vec<(Key, u32)> {
+    let top = |p: &(Key, u32)| (p.0 .0 >> 32) as u32;
+    let len: usize = chunks.iter().map(Vec::len).sum();
+    let (lo, hi) = chunks
         .par_iter()
-        .map(|p| (top(p), top(p)))
+        .flat_map_iter(|c| c.iter().map(|p| (top(p), top(p))))
         .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)));
-    if pairs.len() < 2 * CHUNK || lo >= hi {
-        let mut pairs = pairs;
+    if len < 2 * KEY_CHUNK || lo >= hi {
+        let mut pairs = chunks.concat();
         pairs.par_sort_unstable();
         return pairs;
     }
     // About 256 pairs a bucket; the shift keeps the bucket monotone in the key.
-    let want = (pairs.len() / 256).next_power_of_two().min(1 << 16) as u64;
+    let want = (len / 256).next_power_of_two().min(1 << 16) as u64;
     let span = u64::from(hi - lo) + 1;
     let shift = (64 - (span.div_ceil(want)).leading_zeros()).min(31);
     let buckets = ((span - 1) >> shift) as usize + 1;
-    let bucket = |p: &(u128, u32)| ((top(p) - lo) >> shift) as usize;
-    let chunks: Vec<&[(u128, u32)]> = pairs.chunks(CHUNK).collect();
+    let bucket = |p: &(Key, u32)| ((top(p) - lo) >> shift) as usize;
     let counts: Vec<Vec<usize>> = chunks
         .par_iter()
         .map(|c| {
@@ -640,7 +655,7 @@ fn bucket_sort(pairs: Vec<(u128, u32)>) -> Vec<(u128, u32)> {
         bucket_start[b] = start;
         start += size;
     }
-    let mut out = vec![(0u128, 0u32); pairs.len()];
+    let mut out = vec![(Key::default(), 0u32); len];
     {
         let slots = DisjointWrites::new(&mut out);
         chunks.par_iter().zip(firsts).for_each(|(c, mut fill)| {
@@ -652,7 +667,7 @@ fn bucket_sort(pairs: Vec<(u128, u32)>) -> Vec<(u128, u32)> {
             }
         });
     }
-    drop(pairs);
+    drop(chunks);
     let mut parts = Vec::with_capacity(buckets);
     let mut rest = &mut out[..];
     for &size in &sizes {
@@ -662,6 +677,33 @@ fn bucket_sort(pairs: Vec<(u128, u32)>) -> Vec<(u128, u32)> {
     }
     parts.into_par_iter().for_each(|part| part.sort_unstable());
     out
+}
+
+/// Merged samples per task of the set's main pass.
+const PIECE: usize = 4096;
+
+/// How many runs ahead the main pass prefetches its input records.
+const PREFETCH_RUNS: usize = 16;
+
+/// Ask for input sample `index`'s record (88 bytes: two or three cache lines) to be
+/// brought into cache; a hint only, with no effect on any value.
+#[inline(always)]
+fn prefetch_sample(samples: &[npf_data_loaders::MeasuredSample], index: u32) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(s) = samples.get(index as usize) {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = (s as *const npf_data_loaders::MeasuredSample).cast::<i8>();
+        let last = std::mem::size_of::<npf_data_loaders::MeasuredSample>() - 1;
+        // SAFETY: a prefetch reads nothing and faults on no address; the
+        // addresses are the record's first byte, 64 bytes on and last byte.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64.min(last)));
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(last));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (samples, index);
 }
 
 /// Whether an elevation is past the cut-off (at most pi/2) or has a
@@ -776,21 +818,27 @@ impl FitSet {
         // symmetric in the two directions, so ordering each pair by
         // elevation (azimuths travel with their elevation) changes no model
         // value.
-        let order: Vec<(u128, u32)> = samples
+        // Collected chunk by chunk into vectors of the chunk's size: no
+        // growing vector, and no concatenation (the sort reads the chunks).
+        let keyed: Vec<Vec<(Key, u32)>> = samples
             .samples
-            .par_iter()
+            .par_chunks(KEY_CHUNK)
             .enumerate()
-            .filter_map(|(index, s)| {
-                let a = &s.angles;
-                if outside_cut(a.theta_i, cut) || outside_cut(a.theta_o, cut) {
-                    return None;
+            .map(|(c, chunk)| {
+                let mut keys = Vec::with_capacity(chunk.len());
+                for (k, s) in chunk.iter().enumerate() {
+                    let a = &s.angles;
+                    if !(outside_cut(a.theta_i, cut) || outside_cut(a.theta_o, cut)) {
+                        keys.push((sort_key(a), (c * KEY_CHUNK + k) as u32));
+                    }
                 }
-                Some((sort_key(a), index as u32))
+                keys
             })
             .collect();
+        let kept: usize = keyed.iter().map(Vec::len).sum();
         lap.done("keys");
-        stats.cut = stats.input - order.len();
-        if order.is_empty() {
+        stats.cut = stats.input - kept;
+        if kept == 0 {
             return Err(SampleError::Empty {
                 source_name: samples.source.clone(),
                 input: stats.input,
@@ -802,9 +850,9 @@ impl FitSet {
         // memory mostly forward. Ties are broken by the index, so reciprocal
         // partners (equal keys) end up adjacent and in input order, as a
         // stable sort would leave them.
-        let sorted = bucket_sort(order);
+        let sorted = bucket_sort(keyed);
         lap.done("sort");
-        let order: &[(u128, u32)] = &sorted;
+        let order: &[(Key, u32)] = &sorted;
         // A sample's value and weights, recomputed from the input wherever
         // they are needed (cheaper than carrying 48 bytes through the sort).
         let value_at = |s: &npf_data_loaders::MeasuredSample, cos_i: f64| {
@@ -837,41 +885,61 @@ impl FitSet {
         // value and weights, and for a pair (the usual run: a configuration
         // and its reciprocal) the partner's share of the offset. Longer runs
         // (rare) have their shares computed below.
-        // The same pass gathers each merged sample's angles with theta_i <=
-        // theta_o (G(in) G(out) is symmetric in the two directions, and
-        // azimuths travel with their elevation) and its geometric terms,
-        // reading each first member once.
+        // The same pass writes each merged sample's geometric terms, with
+        // theta_i <= theta_o (G(in) G(out) is symmetric in the two
+        // directions, and azimuths travel with their elevation), and its
+        // first member's index, from which the stencils are computed later.
+        let g_free = last_free_g_node(&layout, cut);
+        let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
+        let n_g = layout.g.n_theta();
+        let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
+        let (dg, fg, gg): (Grid, Grid, Grid) = (layout.d, layout.f, layout.g);
         let (mut y, mut w) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         let mut pair_share = vec![[0.0; 3]; n];
-        let mut gathered = vec![[0.0; 8]; n];
         let (mut inv_cc, mut dirs) = (vec![0.0; n], vec![[0.0f32; 3]; n]);
+        // Each merged sample's first member: the stencils are computed from
+        // it once the sort's arrays are freed (4 bytes a sample held across
+        // them, not its 64 bytes of angles).
+        let mut first_of = vec![0u32; n];
         (
-            y.par_iter_mut(),
-            w.par_iter_mut(),
-            pair_share.par_iter_mut(),
-            gathered.par_iter_mut(),
-            inv_cc.par_iter_mut(),
-            dirs.par_iter_mut(),
+            y.par_chunks_mut(PIECE),
+            w.par_chunks_mut(PIECE),
+            pair_share.par_chunks_mut(PIECE),
+            inv_cc.par_chunks_mut(PIECE),
+            dirs.par_chunks_mut(PIECE),
+            first_of.par_chunks_mut(PIECE),
         )
             .into_par_iter()
             .enumerate()
-            .for_each(|(g, (y, w, share, angles, inv_cc, dirs))| {
-                let members = &order[run(g)];
-                let first = &samples.samples[members[0].1 as usize];
-                let a = first.angles;
-                let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
-                let (ti, pi, to, po) = if a.theta_i > a.theta_o {
-                    (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
-                } else {
-                    (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
-                };
-                *angles = [a.theta_h, a.phi_h, a.theta_d, a.phi_d, ti, pi, to, po];
-                *inv_cc = 1.0 / (ci * co);
-                *dirs = [ti as f32, to as f32, (pi - po).cos() as f32];
-                (*y, *w) = value_at(first, ci);
-                for &(_, index) in &members[1..] {
-                    let (ry, rw) = value(index);
-                    *share = merge_into(y, w, ry, rw);
+            .for_each(|(c, (y, w, share, inv_cc, dirs, first_of))| {
+                for k in 0..y.len() {
+                    let g = c * PIECE + k;
+                    // The first members a few runs ahead: their records
+                    // are scattered over the input, so each read would
+                    // otherwise wait on memory.
+                    if let Some(&ahead) = starts.get(g + PREFETCH_RUNS) {
+                        prefetch_sample(&samples.samples, order[ahead].1);
+                        if let Some(&(_, partner)) = order.get(ahead + 1) {
+                            prefetch_sample(&samples.samples, partner);
+                        }
+                    }
+                    let members = &order[run(g)];
+                    first_of[k] = members[0].1;
+                    let first = &samples.samples[members[0].1 as usize];
+                    let a = first.angles;
+                    let (ci, co) = (a.theta_i.cos(), a.theta_o.cos());
+                    let (ti, pi, to, po) = if a.theta_i > a.theta_o {
+                        (a.theta_o, a.phi_o, a.theta_i, a.phi_i)
+                    } else {
+                        (a.theta_i, a.phi_i, a.theta_o, a.phi_o)
+                    };
+                    inv_cc[k] = 1.0 / (ci * co);
+                    dirs[k] = [ti as f32, to as f32, (pi - po).cos() as f32];
+                    (y[k], w[k]) = value_at(first, ci);
+                    for &(_, index) in &members[1..] {
+                        let (ry, rw) = value(index);
+                        share[k] = merge_into(&mut y[k], &mut w[k], ry, rw);
+                    }
                 }
             });
         lap.done("merge + gather");
@@ -912,12 +980,40 @@ impl FitSet {
         drop((pair_share, share_of, run_shares));
         drop((sorted, starts));
         lap.done("shares + offset");
-        let angles = |j: usize| &gathered[j];
-        let g_free = last_free_g_node(&layout, cut);
-        let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
-        let n_g = layout.g.n_theta();
-        let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
-        let (dg, fg, gg): (Grid, Grid, Grid) = (layout.d, layout.f, layout.g);
+        let mut d_st = StencilTable::zeroed(dg.stencil_width(), n);
+        let mut f_st = StencilTable::zeroed(fg.stencil_width(), n);
+        let mut gi_st = StencilTable::zeroed(gg.stencil_width(), n);
+        let mut go_st = StencilTable::zeroed(gg.stencil_width(), n);
+        (
+            first_of.par_chunks(PIECE),
+            d_st.par_pieces_mut(PIECE),
+            f_st.par_pieces_mut(PIECE),
+            gi_st.par_pieces_mut(PIECE),
+            go_st.par_pieces_mut(PIECE),
+        )
+            .into_par_iter()
+            .for_each(|(first_of, mut d, mut f, mut gi, mut go)| {
+                for (k, &index) in first_of.iter().enumerate() {
+                    if let Some(&ahead) = first_of.get(k + PREFETCH_RUNS) {
+                        prefetch_sample(&samples.samples, ahead);
+                    }
+                    let a = samples.samples[index as usize].angles;
+                    let ((ti, pi), (to, po)) = if a.theta_i > a.theta_o {
+                        ((a.theta_o, a.phi_o), (a.theta_i, a.phi_i))
+                    } else {
+                        ((a.theta_i, a.phi_i), (a.theta_o, a.phi_o))
+                    };
+                    let d_theta = fold_tail(dg.theta.stencil(a.theta_h), d_free, |_| 1.0);
+                    d.store(k, &dg.extend(d_theta, a.phi_h));
+                    f.store(k, &fg.stencil(a.theta_d, a.phi_d));
+                    let gi_theta = fold_tail(gg.theta.stencil(ti), g_free, g_ramp);
+                    gi.store(k, &gg.extend(gi_theta, pi));
+                    let go_theta = fold_tail(gg.theta.stencil(to), g_free, g_ramp);
+                    go.store(k, &gg.extend(go_theta, po));
+                }
+            });
+        drop(first_of);
+        lap.done("stencils");
         let mut set = FitSet {
             layout,
             options,
@@ -925,30 +1021,16 @@ impl FitSet {
             w,
             inv_cc,
             dirs,
-            d_st: StencilTable::from_fn(layout.d.stencil_width(), n, |j| {
-                let a = angles(j);
-                dg.extend(fold_tail(dg.theta.stencil(a[0]), d_free, |_| 1.0), a[1])
-            }),
-            f_st: StencilTable::from_fn(layout.f.stencil_width(), n, |j| {
-                let a = angles(j);
-                fg.stencil(a[2], a[3])
-            }),
-            gi_st: StencilTable::from_fn(layout.g.stencil_width(), n, |j| {
-                let a = angles(j);
-                gg.extend(fold_tail(gg.theta.stencil(a[4]), g_free, g_ramp), a[5])
-            }),
-            go_st: StencilTable::from_fn(layout.g.stencil_width(), n, |j| {
-                let a = angles(j);
-                gg.extend(fold_tail(gg.theta.stencil(a[6]), g_free, g_ramp), a[7])
-            }),
+            d_st,
+            f_st,
+            gi_st,
+            go_st,
             d_inc: Incidence::default(),
             f_inc: Incidence::default(),
             g_inc: GIncidence::default(),
             objective_offset: offset,
             stats,
         };
-        drop(gathered);
-        lap.done("stencils");
         let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
         set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
         lap.done("D incidence");
@@ -1075,16 +1157,33 @@ mod tests {
             ("crowded", Box::new(|i| 7u128 << 96 | (mix(i) % 5) as u128)),
         ];
         for (name, key) in cases {
-            let pairs: Vec<(u128, u32)> = (0..n).map(|i| (key(i), i as u32)).collect();
+            let pairs: Vec<(Key, u32)> = (0..n).map(|i| (Key::from(key(i)), i as u32)).collect();
             let mut expected = pairs.clone();
             expected.sort_unstable();
+            // The halves order keys as the u128s they come from.
+            let wide = |k: Key| (k.0 as u128) << 64 | k.1 as u128;
+            assert!(expected.windows(2).all(|p| wide(p[0].0) <= wide(p[1].0)));
             for threads in [1, 3] {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .build()
                     .unwrap();
-                let got = pool.install(|| bucket_sort(pairs.clone()));
-                assert!(got == expected, "{name}, {threads} threads");
+                // Whole key chunks, and uneven ones (some empty, as a chunk
+                // of samples all past the cut-off leaves).
+                for sizes in [&[KEY_CHUNK][..], &[70_001, 0, 3, 40_000, 0]] {
+                    let mut chunks = Vec::new();
+                    let mut at = 0;
+                    for &size in sizes.iter().cycle() {
+                        if at == pairs.len() {
+                            break;
+                        }
+                        let end = (at + size).min(pairs.len());
+                        chunks.push(pairs[at..end].to_vec());
+                        at = end;
+                    }
+                    let got = pool.install(|| bucket_sort(chunks));
+                    assert!(got == expected, "{name}, {threads} threads, {sizes:?}");
+                }
             }
         }
     }

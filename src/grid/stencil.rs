@@ -194,18 +194,51 @@ impl StencilTable {
             .enumerate()
             .for_each(|(c, (idx, w))| {
                 for (k, (idx, w)) in idx.chunks_mut(width).zip(w.chunks_mut(width)).enumerate() {
-                    let st = stencil(c * CHUNK + k);
-                    for s in 0..st.len as usize {
-                        if s < width {
-                            idx[s] = st.idx[s];
-                            w[s] = st.w[s] as Weight;
-                        } else {
-                            assert!(st.w[s] == 0.0, "stencil wider than its table ({width})");
-                        }
-                    }
+                    Self::store(&stencil(c * CHUNK + k), idx, w);
                 }
             });
         StencilTable { width, idx, w }
+    }
+
+    /// Write a stencil into one sample's zeroed slots (`idx` and `w` of the
+    /// table's width), as [`from_fn`](Self::from_fn) stores it: slots past
+    /// the stencil's length stay 0. Panics if a non-zero slot does not fit.
+    #[inline]
+    pub fn store(st: &Stencil, idx: &mut [u32], w: &mut [Weight]) {
+        let width = idx.len().min(w.len());
+        for s in 0..st.len as usize {
+            if s < width {
+                idx[s] = st.idx[s];
+                w[s] = st.w[s] as Weight;
+            } else {
+                assert!(st.w[s] == 0.0, "stencil wider than its table ({width})");
+            }
+        }
+    }
+
+    /// The table in consecutive pieces of `per` samples (the last may be
+    /// shorter), for parallel writers that [`StencilRows::store`] each
+    /// sample's stencil.
+    pub fn par_pieces_mut(
+        &mut self,
+        per: usize,
+    ) -> impl rayon::iter::IndexedParallelIterator<Item = StencilRows<'_>> {
+        use rayon::prelude::*;
+        let width = self.width;
+        let slots = (per * width).max(1);
+        self.idx
+            .par_chunks_mut(slots)
+            .zip(self.w.par_chunks_mut(slots))
+            .map(move |(idx, w)| StencilRows { width, idx, w })
+    }
+
+    /// A table of `n` samples' zeroed slots, to be filled by [`store`](Self::store).
+    pub fn zeroed(width: usize, n: usize) -> Self {
+        StencilTable {
+            width,
+            idx: vec![0; width * n],
+            w: vec![0.0; width * n],
+        }
     }
 
     /// Number of samples.
@@ -270,6 +303,23 @@ impl StencilTable {
     /// Heap bytes.
     pub fn heap_bytes(&self) -> usize {
         self.idx.len() * 4 + self.w.len() * std::mem::size_of::<Weight>()
+    }
+}
+
+/// Consecutive samples' slots of a [`StencilTable`], written in place.
+pub struct StencilRows<'a> {
+    width: usize,
+    idx: &'a mut [u32],
+    w: &'a mut [Weight],
+}
+
+impl StencilRows<'_> {
+    /// Store the stencil of the piece's k-th sample (its slots must still
+    /// be zero), as [`StencilTable::store`].
+    #[inline]
+    pub fn store(&mut self, k: usize, st: &Stencil) {
+        let r = k * self.width..(k + 1) * self.width;
+        StencilTable::store(st, &mut self.idx[r.clone()], &mut self.w[r]);
     }
 }
 
