@@ -218,6 +218,20 @@ fn fit_exports_both_forms_which_reload_exactly_and_reconstruct_and_evaluate() {
         23 + 4 * from_bin.param_count()
     );
 
+    // info names the coarse schedule the record holds.
+    let coarse = fit.selection.as_ref().unwrap()["coarse"].clone();
+    let level = &coarse["levels"][0];
+    let o = npf(&["info", s(&json)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let line = format!(
+        "coarse levels  1/{} {} sweeps; G {} on the full set",
+        level["factor"],
+        level["sweeps"],
+        coarse["g_on_full_set"].as_str().unwrap()
+    );
+    assert!(out.contains(&line), "{line:?} not in {out}");
+
     // reconstruct: a MERL table whose cells are the model's values.
     let rec = dir.path().join("rec.binary");
     let o = npf(&["reconstruct", s(&json), "-o", s(&rec)]);
