@@ -896,7 +896,8 @@ impl NpfBxdf {
         } else {
             (-1.0, (2.0 * v - 1.0).min(1.0))
         };
-        let (i, t, j, dv) = tables[view_node(sel.at)].sample_cells([u[0], v]);
+        // v is in [0, 1] already (`unit`, then 2v or 2v - 1 at most 1).
+        let (i, t, j, dv) = tables[view_node(sel.at)].sample_cells_unit_v(u[0], v);
         ((i, j), t, dv, sign)
     }
 
