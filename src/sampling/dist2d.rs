@@ -142,9 +142,10 @@ impl PiecewiseConstant2D {
         // coordinate by a few ulps of j + dv (below 1e-9 for ny < 2^20), so
         // only a dv that close to the cell's ends needs the check (two
         // divisions the common case skips).
-        // (|dv - 1/2| against 1/2 - 1e-9: the same test up to rounding of
-        // the bound, by ~1e-16, where the check passes either way.)
-        if (!((dv - 0.5).abs() < 0.5 - 1e-9) || self.ny >= 1 << 20)
+        // (|dv - 1/2| against 1/2 - 1e-9, dv never NaN: the same test up
+        // to rounding of the bound, by ~1e-16, where the check passes
+        // either way.)
+        if ((dv - 0.5).abs() >= 0.5 - 1e-9 || self.ny >= 1 << 20)
             && self.y_cell((j as f64 + dv) * (self.y_max / self.ny as f64)) != Some(j)
         {
             return (i, x, j, 0.5);
