@@ -629,14 +629,22 @@ impl NpfBxdf {
         }
     }
 
+    /// Every lobe's density in cell (i, j) (t cell, azimuth cell) of the
+    /// tables at the view node of `sel`.
+    #[inline(always)]
+    fn density_row(&self, sel: &Sel, (i, j): (usize, usize)) -> &[f64] {
+        let nl = self.model.lobes.len();
+        let cells = self.edges.len() - 1;
+        let base = ((view_node(sel.at) * cells + i) * PHI_CELLS + j) * nl;
+        &self.densities[base..base + nl]
+    }
+
     /// `pdf` plus every lobe's part of the mixture density for a half
     /// vector in cell (i, j) (t cell, azimuth cell), added lobe by lobe.
     #[inline(always)]
     fn add_lobe_densities(&self, mut pdf: f64, sel: &Sel, (i, j): (usize, usize), jac: f64) -> f64 {
         let nl = self.model.lobes.len();
-        let cells = self.edges.len() - 1;
-        let base = ((view_node(sel.at) * cells + i) * PHI_CELLS + j) * nl;
-        let row = &self.densities[base..base + nl];
+        let row = self.density_row(sel, (i, j));
         // The lobes in `sel` first, without branches (a zero density adds
         // an exact 0, as skipping it would), then any further lobes.
         let head = nl.min(SEL_ROW - 1);
@@ -756,6 +764,16 @@ impl NpfBxdf {
         }; 4];
         // The t and azimuth cells of each lobe draw (None: no lobe draw).
         let mut cells = [None; 4];
+        // The mixture pdf of the lobe draws in lanes: per lane, the
+        // diffuse share, each lobe's share times its density in the drawn
+        // cell, and that density (a zero adds nothing). Only up to
+        // SEL_ROW - 1 lobes (every model with a flat evaluator); others
+        // take the per-lane `finish_lobe` below.
+        let nl = self.model.lobes.len();
+        let in_lanes = nl < SEL_ROW;
+        let mut p_diffuse = [0.0; 4];
+        let mut lobe = [0.0; 4];
+        let (mut share_d, mut dens) = ([[0.0; 4]; SEL_ROW - 1], [[0.0; 4]; SEL_ROW - 1]);
         for k in 0..4 {
             sels[k] = self.selection_row_at(row_at_angle(theta[k]));
             if !(wo[k][2] > 0.0) {
@@ -778,6 +796,14 @@ impl NpfBxdf {
             cells[k] = Some(cell);
             [sc[k], cc[k]] = azimuth_centre(cell.1);
             (t[k], sign[k], dv[k]) = (tk, s, d);
+            lobe[k] = 1.0;
+            p_diffuse[k] = sels[k].p[0];
+            if in_lanes {
+                let row = self.density_row(&sels[k], cell);
+                for (m, &dm) in row.iter().enumerate().take(SEL_ROW - 1) {
+                    (share_d[m][k], dens[m][k]) = (sels[k].p[m + 1] * dm, dm);
+                }
+            }
         }
         let column = |c: usize| [wo[0][c], wo[1][c], wo[2][c], wo[3][c]];
         let (o0, o1, o2) = (column(0), column(1), column(2));
@@ -788,25 +814,56 @@ impl NpfBxdf {
             [V::load(&sc), V::load(&cc)],
             V::load(&dv),
         );
-        let (wi0, wi1, wi2) = (r.wi[0].to_array(), r.wi[1].to_array(), r.wi[2].to_array());
-        let wo_h = r.wo_h.to_array();
-        let (s_z, wo_s) = (r.jac.s_z.to_array(), r.jac.wo_s.to_array());
-        let (r2, jac) = (r.jac.r2.to_array(), r.jac.jac.to_array());
+        // `finish_lobe` in lanes, its operations in its order: the diffuse
+        // part, each lobe's (share x density) x Jacobian where the density
+        // is above 0, then 0 for a lost draw (below the horizon or a pdf
+        // not above 0).
+        let (zero, one) = (V::splat(0.0), V::splat(1.0));
+        let (jac, p0) = (r.jac.jac, V::load(&p_diffuse));
+        let mut pdf = zero.lt_select(p0, p0 * r.wi[2] / V::splat(PI), zero);
+        for m in 0..nl.min(SEL_ROW - 1) {
+            let d = V::load(&dens[m]);
+            pdf = pdf + zero.lt_select(d, V::load(&share_d[m]) * jac, zero);
+        }
+        let pdf = zero.lt_select(pdf, pdf, zero);
+        let (s_z, wo_s, r2) = (r.jac.s_z, r.jac.wo_s, r.jac.r2);
+        let jac_ok = zero.lt_select(
+            s_z,
+            zero.lt_select(wo_s, r2.lt_select(r2 + s_z * s_z, one, zero), zero),
+            zero,
+        );
+        let kept = zero.lt_select(r.wo_h, zero.lt_select(r.wi[2], one, zero), zero);
+        let pdf = zero.lt_select(kept, zero.lt_select(jac_ok, pdf, zero), zero);
+        let is_lobe = V::load(&lobe);
+        for c in 0..3 {
+            out.wi[c] = zero
+                .lt_select(is_lobe, r.wi[c], V::load(&out.wi[c]))
+                .to_array();
+        }
+        out.pdf = zero.lt_select(is_lobe, pdf, V::load(&out.pdf)).to_array();
+        // Rare: a kept lobe draw whose Jacobian `finish_lobe` would not
+        // take (it then calls `pdf_at`), or more lobes than the lanes hold.
+        let odd = (is_lobe * kept * (one - jac_ok)).to_array();
+        if in_lanes && odd == [0.0; 4] {
+            return out;
+        }
         for k in 0..4 {
             let (Some(cell), Component::Lobe(m)) = (cells[k], out.component[k]) else {
                 continue;
             };
+            if in_lanes && odd[k] == 0.0 {
+                continue;
+            }
             let r = Reflection {
-                wi: [wi0[k], wi1[k], wi2[k]],
-                wo_h: wo_h[k],
+                wi: [out.wi[0][k], out.wi[1][k], out.wi[2][k]],
+                wo_h: r.wo_h.to_array()[k],
                 jac: JacobianParts {
-                    s_z: s_z[k],
-                    wo_s: wo_s[k],
-                    r2: r2[k],
-                    jac: jac[k],
+                    s_z: s_z.to_array()[k],
+                    wo_s: wo_s.to_array()[k],
+                    r2: r2.to_array()[k],
+                    jac: jac.to_array()[k],
                 },
             };
-            (out.wi[0][k], out.wi[1][k], out.wi[2][k]) = (wi0[k], wi1[k], wi2[k]);
             out.pdf[k] = match self.finish_lobe(wo[k], &sels[k], m, cell, &r) {
                 Ok((_, pdf, _)) => pdf,
                 Err(_) => 0.0,
@@ -839,7 +896,8 @@ impl NpfBxdf {
         } else {
             (-1.0, (2.0 * v - 1.0).min(1.0))
         };
-        let (i, t, j, dv) = tables[view_node(sel.at)].sample_cells([u[0], v]);
+        // v is in [0, 1] already (`unit`, then 2v or 2v - 1 at most 1).
+        let (i, t, j, dv) = tables[view_node(sel.at)].sample_cells_unit_v(u[0], v);
         ((i, j), t, dv, sign)
     }
 

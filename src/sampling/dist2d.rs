@@ -100,12 +100,19 @@ impl PiecewiseConstant2D {
     /// `(j + dv) * y_max / ny`, which lies in cell j.
     #[inline(always)]
     pub fn sample_cells(&self, u: [f64; 2]) -> (usize, f64, usize, f64) {
-        let (i, x) = self.marginal.sample_cell(u[0]);
         let v = if u[1].is_finite() {
             u[1].clamp(0.0, 1.0)
         } else {
             0.0
         };
+        self.sample_cells_unit_v(u[0], v)
+    }
+
+    /// [`PiecewiseConstant2D::sample_cells`] of (u0, v) for a v already
+    /// in [0, 1] (a caller that clamped it need not pay twice).
+    #[inline(always)]
+    pub(crate) fn sample_cells_unit_v(&self, u0: f64, v: f64) -> (usize, f64, usize, f64) {
+        let (i, x) = self.marginal.sample_cell(u0);
         let ny = self.ny;
         let row = &self.cdf[i * (ny + 1)..(i + 1) * (ny + 1)];
         // The last j with row[j] <= v (row[0] = 0 <= v), as a binary search
@@ -135,7 +142,10 @@ impl PiecewiseConstant2D {
         // coordinate by a few ulps of j + dv (below 1e-9 for ny < 2^20), so
         // only a dv that close to the cell's ends needs the check (two
         // divisions the common case skips).
-        if (dv < 1e-9 || dv > 1.0 - 1e-9 || self.ny >= 1 << 20)
+        // (|dv - 1/2| against 1/2 - 1e-9, dv never NaN: the same test up
+        // to rounding of the bound, by ~1e-16, where the check passes
+        // either way.)
+        if ((dv - 0.5).abs() >= 0.5 - 1e-9 || self.ny >= 1 << 20)
             && self.y_cell((j as f64 + dv) * (self.y_max / self.ny as f64)) != Some(j)
         {
             return (i, x, j, 0.5);
