@@ -117,8 +117,8 @@ pub struct CoarseFit {
 /// Owned samples are freed once every set is built, before the full set's
 /// sweeps: the measured samples (88 bytes each, 128 MB for a MERL table)
 /// and the solver's caches are then never in memory together.
-pub fn fit(
-    samples: SampleData<'_>,
+pub fn fit<'a>(
+    samples: impl Into<SampleData<'a>>,
     (layout, so): (Layout, SampleOptions),
     schedule: Schedule,
     opts: FitOptions,
@@ -126,6 +126,7 @@ pub fn fit(
     observer: &mut dyn Observer,
 ) -> Result<CoarseFit, CoarseError> {
     let t0 = std::time::Instant::now();
+    let samples = samples.into();
     let keep_g = schedule.keep_g && levels_run(&samples, layout, schedule, opts.lobes);
     let (opts_full, g_use) = if keep_g {
         let fixed = FitOptions {

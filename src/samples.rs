@@ -152,6 +152,12 @@ impl From<MeasuredSamples> for SampleData<'_> {
     }
 }
 
+impl<'a> From<Cow<'a, MeasuredSamples>> for SampleData<'a> {
+    fn from(s: Cow<'a, MeasuredSamples>) -> Self {
+        SampleData::Records(s)
+    }
+}
+
 impl From<MerlSamples> for SampleData<'_> {
     fn from(m: MerlSamples) -> Self {
         SampleData::Merl(Box::new(m))
