@@ -181,7 +181,7 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
     };
     // Owned: the samples are freed before the full set's sweeps (as in
     // `npf fit`) and made again from the table for the error measures.
-    let owned = std::borrow::Cow::Owned(samples);
+    let owned = npf::samples::SampleData::from(samples);
     let fitted = npf::coarse::fit(owned, (layout, so), schedule, opts, start, &mut quiet)
         .map_err(|e| e.to_string())?;
     let (res, levels) = (fitted.result, fitted.levels);

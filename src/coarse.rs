@@ -12,28 +12,24 @@
 //! own, smaller scale and are not in the history.
 
 use crate::model::Layout;
-use crate::samples::{FitSet, GUse, SampleError, SampleOptions};
+use crate::samples::{FitSet, GUse, SampleData, SampleError, SampleOptions, SampleSource};
 use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, Observer, SolverError};
 use npf_data_loaders::MeasuredSamples;
-use std::borrow::Cow;
 
 /// Every `factor`-th sample on average, chosen by a hash of the index (not a
 /// stride: MERL's order is a regular grid, and a stride would alias with
 /// it). The same samples for any thread count and run. `factor` <= 1 keeps
 /// all.
-pub fn decimate(samples: &MeasuredSamples, factor: usize) -> MeasuredSamples {
+pub fn decimate<S: SampleSource + ?Sized>(samples: &S, factor: usize) -> MeasuredSamples {
     let keep = |i: usize| factor <= 1 || mix(i as u64) % factor as u64 == 0;
     MeasuredSamples {
-        source: samples.source.clone(),
-        isotropic: samples.isotropic,
-        samples: samples
-            .samples
-            .iter()
-            .enumerate()
-            .filter(|&(i, _)| keep(i))
-            .map(|(_, s)| *s)
+        source: samples.source_name().to_string(),
+        isotropic: samples.is_isotropic(),
+        samples: (0..samples.sample_count())
+            .filter(|&i| keep(i))
+            .map(|i| samples.record(i))
             .collect(),
-        missing: samples.missing,
+        missing: samples.missing_count(),
     }
 }
 
@@ -121,8 +117,8 @@ pub struct CoarseFit {
 /// Owned samples are freed once every set is built, before the full set's
 /// sweeps: the measured samples (88 bytes each, 128 MB for a MERL table)
 /// and the solver's caches are then never in memory together.
-pub fn fit(
-    samples: Cow<'_, MeasuredSamples>,
+pub fn fit<'a>(
+    samples: impl Into<SampleData<'a>>,
     (layout, so): (Layout, SampleOptions),
     schedule: Schedule,
     opts: FitOptions,
@@ -130,6 +126,7 @@ pub fn fit(
     observer: &mut dyn Observer,
 ) -> Result<CoarseFit, CoarseError> {
     let t0 = std::time::Instant::now();
+    let samples = samples.into();
     let keep_g = schedule.keep_g && levels_run(&samples, layout, schedule, opts.lobes);
     let (opts_full, g_use) = if keep_g {
         let fixed = FitOptions {
@@ -143,7 +140,7 @@ pub fn fit(
     };
     let (set, coarse) = rayon::join(
         || {
-            let set = FitSet::build_for(&samples, layout, so, g_use);
+            let set = FitSet::build_from(&samples, layout, so, g_use);
             (set, t0.elapsed().as_secs_f64())
         },
         || levels_fit(&samples, (layout, so), schedule, opts, start),
@@ -198,10 +195,10 @@ fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
 
 /// Whether any decimated level of `schedule` will run (the count
 /// [`levels_fit`] tests, without building the decimated samples).
-fn levels_run(samples: &MeasuredSamples, layout: Layout, schedule: Schedule, lobes: usize) -> bool {
+fn levels_run(samples: &SampleData, layout: Layout, schedule: Schedule, lobes: usize) -> bool {
     let least = MIN_SAMPLES_PER_PARAMETER * layout.param_count(lobes);
     schedule.factors.iter().filter(|&&f| f > 1).any(|&factor| {
-        let kept = (0..samples.samples.len())
+        let kept = (0..samples.sample_count())
             .filter(|&i| mix(i as u64) % factor as u64 == 0)
             .count();
         kept >= least
@@ -210,7 +207,7 @@ fn levels_run(samples: &MeasuredSamples, layout: Layout, schedule: Schedule, lob
 
 /// The decimated levels of [`fit`], in turn: the factors they end at.
 fn levels_fit(
-    samples: &MeasuredSamples,
+    samples: &SampleData,
     (layout, so): (Layout, SampleOptions),
     schedule: Schedule,
     opts: FitOptions,

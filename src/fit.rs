@@ -10,7 +10,10 @@ use crate::coarse::CoarseError;
 use crate::metrics::{compare_model, compare_model_table, Metrics};
 use crate::model::Layout;
 use crate::modelfile::FitInfo;
-use crate::samples::{round_to_i64, KeyMap, SampleError, SampleOptions, Weighting};
+use crate::samples::{
+    round_to_i64, KeyMap, SampleData, SampleError, SampleOptions, SampleSource, SampleView,
+    Weighting,
+};
 use crate::solver::{
     init, DiffuseKind, Factors, FitOptions, FitResult, GMethod, SolverError, SweepReport,
     INDEPENDENT_CHANNELS,
@@ -409,8 +412,8 @@ impl FitConfig {
     /// The layout a fit of `samples` uses: [`FitConfig::layout`] for
     /// isotropic data, [`Layout::anisotropic`] (2010 parameters for three
     /// lobes; `nodes` does not apply) for anisotropic data such as UTIA tables.
-    pub fn layout_for(&self, samples: &MeasuredSamples) -> Layout {
-        if samples.isotropic {
+    pub fn layout_for<S: SampleSource + ?Sized>(&self, samples: &S) -> Layout {
+        if samples.is_isotropic() {
             self.layout()
         } else {
             Layout::anisotropic()
@@ -424,16 +427,16 @@ impl FitConfig {
     /// `epsilon_median_untrusted` if larger and the data are untrusted
     /// ([`FloorRule`]). Depends on the data alone, so the objective is one
     /// fixed weighted least squares and the fit stays deterministic.
-    pub fn floor_rule(&self, samples: &MeasuredSamples) -> FloorRule {
+    pub fn floor_rule<S: SampleSource + ?Sized>(&self, samples: &S) -> FloorRule {
         use rayon::prelude::*;
         let cut = self.max_theta.to_radians();
         // Parallel passes: counts are exact in any order, and the median
         // is a rank, the same for any order of the values.
         let inside = || {
-            samples
-                .samples
-                .par_iter()
-                .filter(move |s| s.angles.theta_i <= cut && s.angles.theta_o <= cut)
+            (0..samples.sample_count())
+                .into_par_iter()
+                .map(|i| samples.view(i))
+                .filter(move |s| s.theta_i <= cut && s.theta_o <= cut)
         };
         let (zeros, n) = inside()
             .fold(
@@ -475,7 +478,7 @@ impl FitConfig {
             return rule;
         }
         let mut v: Vec<f64> = inside()
-            .map(|s| (s.rgb[0] + s.rgb[1] + s.rgb[2]) / 3.0 * s.angles.theta_i.cos().max(0.0))
+            .map(|s| (s.rgb[0] + s.rgb[1] + s.rgb[2]) / 3.0 * s.theta_i.cos().max(0.0))
             .filter(|v| v.is_finite())
             .collect();
         if v.is_empty() {
@@ -519,18 +522,18 @@ impl FitConfig {
     /// was read from: (NaN, 0) when `grazing_trust` is off, a taper is set,
     /// the cut-off is already at [`GRAZING_MAX_THETA`] or the data are
     /// anisotropic.
-    pub fn grazing_asymmetry(&self, samples: &MeasuredSamples) -> (f64, usize) {
+    pub fn grazing_asymmetry<S: SampleSource + ?Sized>(&self, samples: &S) -> (f64, usize) {
         if self.grazing_trust <= 0.0
             || self.taper_from.is_some()
             || self.max_theta >= GRAZING_MAX_THETA
-            || !samples.isotropic
+            || !samples.is_isotropic()
         {
             return (f64::NAN, 0);
         }
         use rayon::prelude::*;
         let (lo, hi) = (self.max_theta.to_radians(), GRAZING_MAX_THETA.to_radians());
         let q = |x: f64| round_to_i64(x * 1e6);
-        let key = |a: &npf_data_loaders::geometry::Angles, swap: bool| {
+        let key = |a: &SampleView, swap: bool| {
             let (i, o) = if swap {
                 (a.theta_o, a.theta_i)
             } else {
@@ -541,23 +544,23 @@ impl FitConfig {
         // The band in input order (a later duplicate key overwrites an
         // earlier one, as in a serial pass); the quartile is a rank, the
         // same for any order of the ratios.
-        let band: Vec<&npf_data_loaders::MeasuredSample> = samples
-            .samples
-            .par_iter()
+        let band: Vec<SampleView> = (0..samples.sample_count())
+            .into_par_iter()
+            .map(|i| samples.view(i))
             .filter(|s| {
-                let t = s.angles.theta_i.max(s.angles.theta_o);
+                let t = s.theta_i.max(s.theta_o);
                 t > lo && t <= hi
             })
             .collect();
         let value: KeyMap<_, f64> = band
             .iter()
-            .map(|s| (key(&s.angles, false), s.rgb.iter().sum::<f64>()))
+            .map(|s| (key(s, false), s.rgb.iter().sum::<f64>()))
             .collect();
         let mut r: Vec<f64> = band
             .par_iter()
             .filter_map(|s| {
                 let a = s.rgb.iter().sum::<f64>();
-                let b = *value.get(&key(&s.angles, true))?;
+                let b = *value.get(&key(s, true))?;
                 (a + b > 0.0).then(|| (a - b).abs() / (a + b))
             })
             .collect();
@@ -569,14 +572,14 @@ impl FitConfig {
     }
 
     /// The floor [`FitConfig::floor_rule`] chooses for `samples`.
-    pub fn epsilon_for(&self, samples: &MeasuredSamples) -> f64 {
+    pub fn epsilon_for<S: SampleSource + ?Sized>(&self, samples: &S) -> f64 {
         self.floor_rule(samples).epsilon
     }
 
     /// [`FitConfig::sample_options`] with the floor and the grazing
     /// cut-off resolved for `samples`.
-    pub fn sample_options_for(&self, samples: &MeasuredSamples) -> SampleOptions {
-        self.sample_options_with(&self.floor_rule(samples), samples.isotropic)
+    pub fn sample_options_for<S: SampleSource + ?Sized>(&self, samples: &S) -> SampleOptions {
+        self.sample_options_with(&self.floor_rule(samples), samples.is_isotropic())
     }
 
     /// [`FitConfig::sample_options`] with the floor and the grazing
@@ -785,17 +788,15 @@ struct Produced {
 }
 
 /// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
-fn check_representable(samples: &MeasuredSamples) -> Result<(), FitError> {
+fn check_representable<S: SampleSource + ?Sized>(samples: &S) -> Result<(), FitError> {
     // Serial: a parallel scan measured 4 times the CPU time on the shared
     // machine for this one comparison a value.
-    let big = samples
-        .samples
-        .iter()
-        .flat_map(|s| s.rgb)
+    let big = (0..samples.sample_count())
+        .flat_map(|i| samples.rgb(i))
         .find(|v| v.abs() > MAX_SAMPLE_VALUE);
     match big {
         Some(v) => Err(FitError::Unrepresentable {
-            source_name: samples.source.clone(),
+            source_name: samples.source_name().to_string(),
             problem: format!(
                 "a measured value of {v:e} 1/sr is beyond what a model can represent (at most {MAX_SAMPLE_VALUE:e}; models store f32)"
             ),
@@ -828,7 +829,7 @@ fn check_result(source: &str, result: &FitResult, metrics: &Metrics) -> Result<(
 
 /// Owned samples are freed during the fit, once its sample sets are built.
 fn run_kind(
-    samples: Cow<'_, MeasuredSamples>,
+    samples: SampleData<'_>,
     config: &FitConfig,
     observer: &mut dyn FnMut(usize, &SweepReport),
 ) -> Result<Produced, FitError> {
@@ -837,7 +838,7 @@ fn run_kind(
     crate::phases::mark("check values");
     let layout = config.layout_for(&samples);
     let floor = config.floor_rule(&samples);
-    let isotropic = samples.isotropic;
+    let isotropic = samples.is_isotropic();
     let so = config.sample_options_with(&floor, isotropic);
     // The rule's parallel passes left their freed buffers in the worker
     // threads' heaps, which the set build would not reuse (up to 13 MB
@@ -848,7 +849,7 @@ fn run_kind(
     // three lobes with lobe C lighting channel C only, so the objective
     // separates per channel and this solves the three per-channel problems
     // together, with one history.
-    let factor_fit = |samples: Cow<'_, MeasuredSamples>,
+    let factor_fit = |samples: SampleData<'_>,
                       opts: FitOptions,
                       start: Factors,
                       observer: &mut dyn FnMut(usize, &SweepReport)| {
@@ -925,7 +926,10 @@ fn run_kind(
             )
         }
         ModelKind::Ggx => {
-            let fit = fit_ggx(&samples, so)?;
+            let fit = match &samples {
+                SampleData::Records(s) => fit_ggx(s, so)?,
+                SampleData::Merl(m) => fit_ggx(&m.table().samples(m.source()), so)?,
+            };
             let model = fit.params.to_model(layout);
             Ok(Produced {
                 result: FitResult {
@@ -963,7 +967,12 @@ pub fn fit_model(
     config: &FitConfig,
     observer: &mut dyn FnMut(usize, &SweepReport),
 ) -> Result<(FitResult, Option<GgxParams>), FitError> {
-    run_kind(Cow::Borrowed(samples), config, observer).map(|p| (p.result, p.ggx))
+    run_kind(
+        SampleData::Records(Cow::Borrowed(samples)),
+        config,
+        observer,
+    )
+    .map(|p| (p.result, p.ggx))
 }
 
 /// Fit `config.model` to measured samples in a pool of `config.threads`
@@ -976,7 +985,7 @@ pub fn fit(
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
     fit_measured(
-        Cow::Borrowed(samples),
+        SampleData::Records(Cow::Borrowed(samples)),
         || Ok(Measured::Samples(samples)),
         config,
         observer,
@@ -991,15 +1000,17 @@ pub fn fit(
 /// ([`npf_data_loaders::Table::map_sample_chunks`]), so the measured samples
 /// (128 MB for a MERL table) are made once, and never in memory together
 /// with the solver's caches. `reread` must give the table `samples` came
-/// from (`table.samples(..)` is `samples`).
+/// from (`table.samples(..)` is `samples`). A MERL table's
+/// [`npf_data_loaders::MerlSamples`] are fitted without their records
+/// ([`crate::samples::FitSet::build_merl`]): the same fit.
 pub fn fit_owned(
-    samples: MeasuredSamples,
+    samples: impl Into<SampleData<'static>>,
     reread: impl FnOnce() -> Result<npf_data_loaders::Table, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
     fit_measured(
-        Cow::Owned(samples),
+        samples.into(),
         || reread().map(Measured::Table),
         config,
         observer,
@@ -1060,7 +1071,7 @@ enum Measured<'a> {
 /// [`fit`] and [`fit_owned`]: `samples` go into the fit, `remeasure` gives
 /// the same samples (or their table) for the error measures.
 fn fit_measured<'a>(
-    samples: Cow<'a, MeasuredSamples>,
+    samples: SampleData<'a>,
     remeasure: impl FnOnce() -> Result<Measured<'a>, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
@@ -1074,7 +1085,7 @@ fn fit_measured<'a>(
             source,
         })?;
     let threads = pool.current_num_threads();
-    let (source, isotropic) = (samples.source.clone(), samples.isotropic);
+    let (source, isotropic) = (samples.source_name().to_string(), samples.is_isotropic());
     pool.install(|| {
         let Produced {
             mut result,

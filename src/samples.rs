@@ -24,9 +24,204 @@
 
 use crate::grid::{Axis, Grid, Stencil, StencilTable, Weight};
 use crate::model::Layout;
-use npf_data_loaders::MeasuredSamples;
+use npf_data_loaders::{MeasuredSample, MeasuredSamples, MerlSamples};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
+
+mod merl;
+#[doc(hidden)]
+pub use merl::same_up_to_order;
+
+/// What a fit's data rules (the value checks, the floor rule, the grazing
+/// rule) read of one sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleView {
+    /// Polar angle of the half vector.
+    pub theta_h: f64,
+    /// Polar angle of the difference vector.
+    pub theta_d: f64,
+    /// Elevation of wi.
+    pub theta_i: f64,
+    /// Elevation of wo.
+    pub theta_o: f64,
+    /// Linear RGB value (1/sr).
+    pub rgb: [f64; 3],
+}
+
+/// Measured samples as a fit reads them, by index: records
+/// ([`MeasuredSamples`]) or a MERL table's grid ([`MerlSamples`], no
+/// 88-byte record a sample). Both give the same values for the same table.
+pub trait SampleSource: Sync {
+    /// Where the samples came from, for messages.
+    fn source_name(&self) -> &str;
+    /// Whether the data are isotropic.
+    fn is_isotropic(&self) -> bool;
+    /// Number of samples.
+    fn sample_count(&self) -> usize;
+    /// Cells of the source that are not samples.
+    fn missing_count(&self) -> usize;
+    /// Sample i's value.
+    fn rgb(&self, i: usize) -> [f64; 3];
+    /// Sample i's angles and value as the data rules read them.
+    fn view(&self, i: usize) -> SampleView;
+    /// Sample i's record.
+    fn record(&self, i: usize) -> MeasuredSample;
+}
+
+impl SampleSource for MeasuredSamples {
+    fn source_name(&self) -> &str {
+        &self.source
+    }
+    fn is_isotropic(&self) -> bool {
+        self.isotropic
+    }
+    fn sample_count(&self) -> usize {
+        self.samples.len()
+    }
+    fn missing_count(&self) -> usize {
+        self.missing
+    }
+    #[inline]
+    fn rgb(&self, i: usize) -> [f64; 3] {
+        self.samples[i].rgb
+    }
+    #[inline]
+    fn view(&self, i: usize) -> SampleView {
+        let s = &self.samples[i];
+        let a = &s.angles;
+        SampleView {
+            theta_h: a.theta_h,
+            theta_d: a.theta_d,
+            theta_i: a.theta_i,
+            theta_o: a.theta_o,
+            rgb: s.rgb,
+        }
+    }
+    fn record(&self, i: usize) -> MeasuredSample {
+        self.samples[i]
+    }
+}
+
+impl SampleSource for MerlSamples {
+    fn source_name(&self) -> &str {
+        self.source()
+    }
+    fn is_isotropic(&self) -> bool {
+        true
+    }
+    fn sample_count(&self) -> usize {
+        self.len()
+    }
+    fn missing_count(&self) -> usize {
+        self.missing()
+    }
+    #[inline]
+    fn rgb(&self, i: usize) -> [f64; 3] {
+        MerlSamples::rgb(self, i)
+    }
+    #[inline]
+    fn view(&self, i: usize) -> SampleView {
+        let (theta_h, theta_d) = self.half_diff(i);
+        let [theta_i, theta_o] = self.theta(i);
+        SampleView {
+            theta_h,
+            theta_d,
+            theta_i,
+            theta_o,
+            rgb: MerlSamples::rgb(self, i),
+        }
+    }
+    fn record(&self, i: usize) -> MeasuredSample {
+        self.sample(i)
+    }
+}
+
+/// The measured data a fit's sample sets are built from.
+pub enum SampleData<'a> {
+    /// Sample records, from any source.
+    Records(Cow<'a, MeasuredSamples>),
+    /// A MERL table's grid: its set is built by index arithmetic
+    /// ([`FitSet::build_merl`]), the same set as from its records.
+    Merl(Box<MerlSamples>),
+}
+
+impl From<MeasuredSamples> for SampleData<'_> {
+    fn from(s: MeasuredSamples) -> Self {
+        SampleData::Records(Cow::Owned(s))
+    }
+}
+
+impl<'a> From<Cow<'a, MeasuredSamples>> for SampleData<'a> {
+    fn from(s: Cow<'a, MeasuredSamples>) -> Self {
+        SampleData::Records(s)
+    }
+}
+
+impl From<MerlSamples> for SampleData<'_> {
+    fn from(m: MerlSamples) -> Self {
+        SampleData::Merl(Box::new(m))
+    }
+}
+
+impl FitSet {
+    /// [`FitSet::build_for`] on either kind of data: a MERL table's grid
+    /// through [`FitSet::build_merl`] (the same set in grid-row order).
+    pub fn build_from(
+        data: &SampleData<'_>,
+        layout: Layout,
+        options: SampleOptions,
+        g_use: GUse,
+    ) -> Result<Self, SampleError> {
+        match data {
+            SampleData::Records(s) => Self::build_for(s, layout, options, g_use),
+            SampleData::Merl(m) => Self::build_merl(m, layout, options, g_use),
+        }
+    }
+}
+
+/// The same call on either kind of [`SampleData`] (a match, not a
+/// virtual call: the rules call these once a sample).
+macro_rules! on_data {
+    ($data:expr, $s:ident => $e:expr) => {
+        match $data {
+            SampleData::Records($s) => {
+                let $s: &MeasuredSamples = $s;
+                $e
+            }
+            SampleData::Merl($s) => {
+                let $s: &MerlSamples = $s;
+                $e
+            }
+        }
+    };
+}
+
+impl SampleSource for SampleData<'_> {
+    fn source_name(&self) -> &str {
+        on_data!(self, s => s.source_name())
+    }
+    fn is_isotropic(&self) -> bool {
+        on_data!(self, s => s.is_isotropic())
+    }
+    fn sample_count(&self) -> usize {
+        on_data!(self, s => s.sample_count())
+    }
+    fn missing_count(&self) -> usize {
+        on_data!(self, s => s.missing_count())
+    }
+    #[inline]
+    fn rgb(&self, i: usize) -> [f64; 3] {
+        on_data!(self, s => SampleSource::rgb(s, i))
+    }
+    #[inline]
+    fn view(&self, i: usize) -> SampleView {
+        on_data!(self, s => s.view(i))
+    }
+    fn record(&self, i: usize) -> MeasuredSample {
+        on_data!(self, s => s.record(i))
+    }
+}
 
 /// How residuals are weighted in the least-squares objective.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -167,14 +362,18 @@ fn row_key(a: &npf_data_loaders::geometry::Angles) -> (i64, i64) {
     (q(a.theta_h), q(a.theta_d))
 }
 
+/// The pooling angle (radians) where pooling applies: on, and under the
+/// compressive weighting (the only one that reads the values).
+fn pool_limit(o: &SampleOptions) -> Option<f64> {
+    let limit = o.pool_scale_below_deg?.to_radians();
+    (o.weighting == Weighting::Compressive && limit > 0.0).then_some(limit)
+}
+
 /// Row means of the samples inside the cut-off below the pooling angle
 /// (summed in input order: deterministic); `None` when pooling is off or
 /// the weighting does not depend on the values.
 fn pooled_scales(samples: &MeasuredSamples, o: &SampleOptions, cut: f64) -> Option<PooledScales> {
-    let limit = o.pool_scale_below_deg?.to_radians();
-    if o.weighting != Weighting::Compressive || limit <= 0.0 {
-        return None;
-    }
+    let limit = pool_limit(o)?;
     // Serial: a parallel filter's collected pieces, freed in the worker
     // threads' heaps during the set build, raised peak memory by 4-9 MB.
     let mut sums: KeyMap<(i64, i64), ([f64; 3], usize)> = Default::default();
@@ -440,6 +639,37 @@ impl GIncidence {
     }
 }
 
+/// The layout's and the options' own checks, before any set is built.
+fn check_options(layout: &Layout, options: &SampleOptions) -> Result<(), SampleError> {
+    layout.validate()?;
+    if !(options.epsilon > 0.0 && options.epsilon.is_finite()) {
+        return Err(SampleError::Options(format!(
+            "epsilon must be positive, got {}",
+            options.epsilon
+        )));
+    }
+    if !(options.max_theta_h_deg > 0.0 && options.max_theta_h_deg <= 90.0) {
+        return Err(SampleError::Options(format!(
+            "the half-angle limit must be in (0, 90] degrees, got {}",
+            options.max_theta_h_deg
+        )));
+    }
+    if !(options.max_theta_deg > 0.0 && options.max_theta_deg <= 90.0) {
+        return Err(SampleError::Options(format!(
+            "the cut-off must be in (0, 90] degrees, got {}",
+            options.max_theta_deg
+        )));
+    }
+    if let Some(t) = options.taper_from_deg {
+        if !(0.0..90.0).contains(&t) {
+            return Err(SampleError::Options(format!(
+                "the grazing taper must start in [0, 90) degrees, got {t}"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Counts of what happened to the input samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SampleStats {
@@ -542,6 +772,39 @@ pub fn last_free_node(axis: &Axis, limit: f64) -> usize {
         .unwrap_or(0)
 }
 
+/// The tail rules of a layout under a set's options: D cells past the
+/// half-angle limit hold the last free cell's value, G points past the
+/// cut-off ramp from the last free one to 0 ([`fold_tail`]).
+struct Tails {
+    layout: Layout,
+    d_free: usize,
+    g_free: usize,
+}
+
+impl Tails {
+    fn new(layout: &Layout, options: &SampleOptions) -> Self {
+        Tails {
+            layout: *layout,
+            d_free: last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians()),
+            g_free: last_free_g_node(layout, options.max_theta_deg.to_radians()),
+        }
+    }
+
+    /// D's folded theta stencil at a half angle.
+    #[inline]
+    fn d(&self, theta_h: f64) -> Stencil {
+        fold_tail(self.layout.d.theta.stencil(theta_h), self.d_free, |_| 1.0)
+    }
+
+    /// G's folded theta stencil at an elevation.
+    #[inline]
+    fn g(&self, theta: f64) -> Stencil {
+        let (n_g, g_free) = (self.layout.g.n_theta(), self.g_free);
+        let ramp = |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
+        fold_tail(self.layout.g.theta.stencil(theta), g_free, ramp)
+    }
+}
+
 /// Re-express a theta stencil on tied tail entries through the last free
 /// entry L: value_k = value_L * tie(k) for k > L. Applied before the phi
 /// product, so in a 2-D table the tie holds per phi column.
@@ -577,16 +840,21 @@ fn fold_tail(st: Stencil, last_free: usize, tie: impl Fn(usize) -> f64) -> Stenc
 /// 32 bits a component (order-preserving for any angle below 214 rad), so
 /// the sort moves 24-byte (key, index) pairs instead of whole records.
 fn sort_key(a: &npf_data_loaders::geometry::Angles) -> Key {
-    let q = |x: f64| {
-        let v = round_to_i64(x * 1e7).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
-        (v as u32 ^ 0x8000_0000) as u128
-    };
+    let q = |x: f64| key_part(x) as u128;
     let (lo, hi) = if a.theta_i > a.theta_o {
         (a.theta_o, a.theta_i)
     } else {
         (a.theta_i, a.theta_o)
     };
     Key::from(q(lo) << 96 | q(hi) << 64 | q(a.theta_h) << 32 | q(a.theta_d))
+}
+
+/// One component of [`sort_key`]: an angle quantised to 1e-7 rad, as an
+/// order-preserving u32.
+#[inline]
+fn key_part(x: f64) -> u32 {
+    let v = round_to_i64(x * 1e7).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+    v as u32 ^ 0x8000_0000
 }
 
 /// A 128-bit sort key as two 64-bit halves, high first: the same order as
@@ -767,31 +1035,7 @@ impl FitSet {
             return Err(SampleError::AnisotropicData(samples.source.clone()));
         }
         let merge = samples.isotropic && layout.is_isotropic();
-        if !(options.epsilon > 0.0 && options.epsilon.is_finite()) {
-            return Err(SampleError::Options(format!(
-                "epsilon must be positive, got {}",
-                options.epsilon
-            )));
-        }
-        if !(options.max_theta_h_deg > 0.0 && options.max_theta_h_deg <= 90.0) {
-            return Err(SampleError::Options(format!(
-                "the half-angle limit must be in (0, 90] degrees, got {}",
-                options.max_theta_h_deg
-            )));
-        }
-        if !(options.max_theta_deg > 0.0 && options.max_theta_deg <= 90.0) {
-            return Err(SampleError::Options(format!(
-                "the cut-off must be in (0, 90] degrees, got {}",
-                options.max_theta_deg
-            )));
-        }
-        if let Some(t) = options.taper_from_deg {
-            if !(0.0..90.0).contains(&t) {
-                return Err(SampleError::Options(format!(
-                    "the grazing taper must start in [0, 90) degrees, got {t}"
-                )));
-            }
-        }
+        check_options(&layout, &options)?;
         let mut lap = crate::phases::Lap::new("set", samples.samples.len());
         let cut = options.max_theta_deg.to_radians();
         let mut stats = SampleStats {
@@ -889,10 +1133,7 @@ impl FitSet {
         // theta_i <= theta_o (G(in) G(out) is symmetric in the two
         // directions, and azimuths travel with their elevation), and its
         // first member's index, from which the stencils are computed later.
-        let g_free = last_free_g_node(&layout, cut);
-        let d_free = last_free_node(&layout.d.theta, options.max_theta_h_deg.to_radians());
-        let n_g = layout.g.n_theta();
-        let g_ramp = move |k: usize| (n_g - 1 - k) as f64 / (n_g - 1 - g_free) as f64;
+        let tails = Tails::new(&layout, &options);
         let (dg, fg, gg): (Grid, Grid, Grid) = (layout.d, layout.f, layout.g);
         let (mut y, mut w) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         let mut pair_share = vec![[0.0; 3]; n];
@@ -1003,18 +1244,29 @@ impl FitSet {
                     } else {
                         ((a.theta_i, a.phi_i), (a.theta_o, a.phi_o))
                     };
-                    let d_theta = fold_tail(dg.theta.stencil(a.theta_h), d_free, |_| 1.0);
-                    d.store(k, &dg.extend(d_theta, a.phi_h));
+                    d.store(k, &dg.extend(tails.d(a.theta_h), a.phi_h));
                     f.store(k, &fg.stencil(a.theta_d, a.phi_d));
-                    let gi_theta = fold_tail(gg.theta.stencil(ti), g_free, g_ramp);
-                    gi.store(k, &gg.extend(gi_theta, pi));
-                    let go_theta = fold_tail(gg.theta.stencil(to), g_free, g_ramp);
-                    go.store(k, &gg.extend(go_theta, po));
+                    gi.store(k, &gg.extend(tails.g(ti), pi));
+                    go.store(k, &gg.extend(tails.g(to), po));
                 }
             });
         drop(first_of);
         lap.done("stencils");
-        let mut set = FitSet {
+        let values = (y, w, inv_cc, dirs);
+        let stencils = [d_st, f_st, gi_st, go_st];
+        let set = FitSet::assembled((layout, options), values, stencils, (offset, stats));
+        Ok(set.with_incidences(g_use, &mut lap))
+    }
+
+    /// A set of its parts, without incidence lists yet.
+    #[allow(clippy::type_complexity)]
+    fn assembled(
+        (layout, options): (Layout, SampleOptions),
+        (y, w, inv_cc, dirs): (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<f64>, Vec<[f32; 3]>),
+        [d_st, f_st, gi_st, go_st]: [StencilTable; 4],
+        (objective_offset, stats): (f64, SampleStats),
+    ) -> Self {
+        FitSet {
             layout,
             options,
             y,
@@ -1028,22 +1280,27 @@ impl FitSet {
             d_inc: Incidence::default(),
             f_inc: Incidence::default(),
             g_inc: GIncidence::default(),
-            objective_offset: offset,
+            objective_offset,
             stats,
-        };
-        let total_w: Vec<f64> = set.w.iter().map(|w| w.iter().sum()).collect();
-        set.d_inc = Incidence::build(layout.d.len(), &set.d_st, &total_w);
+        }
+    }
+
+    /// The set with the incidence lists of its stencils and weights.
+    fn with_incidences(mut self, g_use: GUse, lap: &mut crate::phases::Lap) -> Self {
+        let layout = self.layout;
+        let total_w: Vec<f64> = self.w.iter().map(|w| w.iter().sum()).collect();
+        self.d_inc = Incidence::build(layout.d.len(), &self.d_st, &total_w);
         lap.done("D incidence");
-        set.f_inc = Incidence::build(layout.f.len(), &set.f_st, &total_w);
+        self.f_inc = Incidence::build(layout.f.len(), &self.f_st, &total_w);
         lap.done("F incidence");
-        set.g_inc = match g_use {
-            GUse::Updated => GIncidence::build(layout.g.len(), &set.gi_st, &set.go_st, &total_w),
+        self.g_inc = match g_use {
+            GUse::Updated => GIncidence::build(layout.g.len(), &self.gi_st, &self.go_st, &total_w),
             GUse::Fixed => {
-                GIncidence::has_data_only(layout.g.len(), &set.gi_st, &set.go_st, &total_w)
+                GIncidence::has_data_only(layout.g.len(), &self.gi_st, &self.go_st, &total_w)
             }
         };
         lap.done("G incidence");
-        Ok(set)
+        self
     }
 
     /// Number of samples the solver sees.

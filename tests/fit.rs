@@ -374,6 +374,52 @@ fn an_owned_fit_is_the_borrowed_fit() {
     assert_eq!(a.info.samples, b.info.samples);
 }
 
+/// A MERL table fitted from its grid (`MerlSamples`, the `npf fit` path:
+/// no sample records, the set in grid-row order) agrees with the fit of
+/// its samples to summation order (objective to 1e-9, the same sweeps),
+/// and is the same for 1 and 2 threads, bit for bit.
+#[test]
+fn a_fit_from_the_merl_grid_is_the_fit_of_its_samples() {
+    let truth = known_factor_model(Layout::default(), &[0.05, 0.2, 0.5]);
+    let table = to_merl(&truth);
+    let fit_grid = |threads: usize| {
+        let config = npf::fit::FitConfig {
+            max_sweeps: 3,
+            threads,
+            ..Default::default()
+        };
+        let grid = npf::loaders::MerlSamples::new(table.clone(), "t");
+        let again = || Ok(npf::loaders::Table::Merl(table.clone()));
+        npf::fit::fit_owned(grid, again, &config, &mut |_, _| {}).unwrap()
+    };
+    let config = npf::fit::FitConfig {
+        max_sweeps: 3,
+        threads: 2,
+        ..Default::default()
+    };
+    let records = npf::fit::fit(&table.samples("t"), &config, &mut |_, _| {}).unwrap();
+    let (one, two) = (fit_grid(1), fit_grid(2));
+    assert_eq!(
+        one.result.objective.to_bits(),
+        two.result.objective.to_bits()
+    );
+    assert_eq!(one.result.model.params(), two.result.model.params());
+    let (a, b) = (records.result.objective, two.result.objective);
+    assert!((a - b).abs() <= 1e-9 * a, "objectives {a:e} vs {b:e}");
+    assert_eq!(records.result.history.len(), two.result.history.len());
+    assert_eq!(records.info.samples, two.info.samples);
+    assert_eq!(records.info.epsilon, two.info.epsilon);
+    for (x, y) in records
+        .result
+        .model
+        .params()
+        .iter()
+        .zip(two.result.model.params())
+    {
+        assert!((x - y).abs() <= 1e-5 * x.abs().max(1e-3), "{x} vs {y}");
+    }
+}
+
 /// When the samples cannot be made again for the error measures (the
 /// input vanished or changed during the fit), the owned fit fails with
 /// that error rather than measuring against something else.

@@ -20,7 +20,7 @@ pub mod utia;
 
 pub use detect::{Format, Table};
 pub use error::LoadError;
-pub use merl::MerlTable;
+pub use merl::{MerlSamples, MerlTable};
 pub use rgl::TensorFile;
 pub use samples::{MeasuredSample, MeasuredSamples};
 pub use utia::UtiaTable;

@@ -445,19 +445,195 @@ impl MerlTable {
             }
             let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
             let rgb = std::array::from_fn(|c| self.raw[c * Self::CELLS + index] * Self::SCALE[c]);
-            let angles = Angles {
-                theta_h: th,
-                phi_h: 0.0,
-                theta_d: td,
-                phi_d: pd,
-                theta_i: 0.0,
-                phi_i: 0.0,
-                theta_o: 0.0,
-                phi_o: 0.0,
-            };
-            sample(at, angles, rgb, wi, wo);
+            sample(at, node_half_diff(th, td, pd), rgb, wi, wo);
         }
     }
+}
+
+/// A MERL table's valid samples without their 88-byte records: for each
+/// sample of [`MerlTable::samples`] (same count, same order), its cell and
+/// its two elevations, 20 bytes. What a fit reads of a MERL table (the
+/// angles a weight or a stencil needs) is the grid's, by index arithmetic;
+/// the elevations are the one per-sample transcendental part, computed once.
+/// [`MerlSamples::sample`] makes any sample's record, bit for bit the one
+/// `samples` makes.
+pub struct MerlSamples {
+    table: MerlTable,
+    source: String,
+    trig: NodeTrig,
+    /// Each sample's cell index ([`MerlTable::index`]).
+    cell: Vec<u32>,
+    /// Each sample's (theta_i, theta_o), as `Angles::from_half_diff`.
+    theta: Vec<[f64; 2]>,
+    /// Grid row r = i_th * 90 + i_td holds samples `row_start[r]..row_start[r + 1]`.
+    row_start: Vec<u32>,
+}
+
+impl std::fmt::Debug for MerlSamples {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MerlSamples")
+            .field("source", &self.source)
+            .field("samples", &self.cell.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Grid rows (theta_h, theta_d pairs) of a MERL table.
+pub const MERL_ROWS: usize = MerlTable::RES_THETA_H * MerlTable::RES_THETA_D;
+
+impl MerlSamples {
+    /// The valid, above-horizon cells of `table` (as [`MerlTable::samples`]),
+    /// found in parallel over the theta_h rows (rayon's current pool): a
+    /// counting pass, then each row writes its own part of arrays of the
+    /// final size, so the result is the same for any thread count.
+    pub fn new(table: MerlTable, source: &str) -> Self {
+        use rayon::prelude::*;
+        let trig = NodeTrig::new();
+        let per_row = MerlTable::RES_THETA_D * MerlTable::RES_PHI_D;
+        // Samples per (theta_h, theta_d) row.
+        let counts: Vec<[u32; MerlTable::RES_THETA_D]> = (0..MerlTable::RES_THETA_H)
+            .into_par_iter()
+            .map(|i_th| {
+                let mut n = [0u32; MerlTable::RES_THETA_D];
+                table.row_cells_at(&trig, i_th, 0..per_row, |at, _, _, _, _| {
+                    n[at / MerlTable::RES_PHI_D] += 1
+                });
+                n
+            })
+            .collect();
+        let mut row_start = Vec::with_capacity(MERL_ROWS + 1);
+        row_start.push(0u32);
+        for n in counts.iter().flatten() {
+            row_start.push(row_start[row_start.len() - 1] + n);
+        }
+        let total = row_start[MERL_ROWS] as usize;
+        let mut cell = vec![0u32; total];
+        let mut theta = vec![[0.0; 2]; total];
+        let mut pieces = Vec::with_capacity(MerlTable::RES_THETA_H);
+        let (mut c_rest, mut t_rest) = (&mut cell[..], &mut theta[..]);
+        for i_th in 0..MerlTable::RES_THETA_H {
+            let n = (row_start[(i_th + 1) * MerlTable::RES_THETA_D]
+                - row_start[i_th * MerlTable::RES_THETA_D]) as usize;
+            let (c, c_tail) = c_rest.split_at_mut(n);
+            let (t, t_tail) = t_rest.split_at_mut(n);
+            pieces.push((c, t));
+            (c_rest, t_rest) = (c_tail, t_tail);
+        }
+        pieces
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(i_th, (c, t))| {
+                let mut k = 0;
+                table.row_cells_at(&trig, i_th, 0..per_row, |at, _, _, wi, wo| {
+                    c[k] = (i_th * per_row + at) as u32;
+                    t[k] = [angles_of(wi).0, angles_of(wo).0];
+                    k += 1;
+                });
+                assert_eq!(k, c.len(), "the two passes over a row disagree");
+            });
+        MerlSamples {
+            table,
+            source: source.to_string(),
+            trig,
+            cell,
+            theta,
+            row_start,
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.cell.len()
+    }
+
+    /// Whether the table has no valid sample.
+    pub fn is_empty(&self) -> bool {
+        self.cell.is_empty()
+    }
+
+    /// Where the samples came from, for messages.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// The table.
+    pub fn table(&self) -> &MerlTable {
+        &self.table
+    }
+
+    /// The table, the samples' arrays freed.
+    pub fn into_table(self) -> MerlTable {
+        self.table
+    }
+
+    /// Sample i's cell ([`MerlTable::index`]).
+    #[inline]
+    pub fn cell(&self, i: usize) -> usize {
+        self.cell[i] as usize
+    }
+
+    /// Sample i's (theta_i, theta_o).
+    #[inline]
+    pub fn theta(&self, i: usize) -> [f64; 2] {
+        self.theta[i]
+    }
+
+    /// Sample i's (theta_h, theta_d), its node's.
+    #[inline]
+    pub fn half_diff(&self, i: usize) -> (f64, f64) {
+        let (i_th, i_td, i_pd) = split_cell(self.cell(i));
+        let (th, td, _) = MerlTable::node_angles(i_th, i_td, i_pd);
+        (th, td)
+    }
+
+    /// Sample i's physical RGB (1/sr).
+    #[inline]
+    pub fn rgb(&self, i: usize) -> [f64; 3] {
+        let at = self.cell(i);
+        std::array::from_fn(|c| self.table.raw[c * MerlTable::CELLS + at] * MerlTable::SCALE[c])
+    }
+
+    /// The samples of grid row `row` (i_th * 90 + i_td).
+    #[inline]
+    pub fn row(&self, row: usize) -> std::ops::Range<usize> {
+        self.row_start[row] as usize..self.row_start[row + 1] as usize
+    }
+
+    /// Sample i's (wi, wo), as [`MerlTable::samples`] computes them.
+    #[inline]
+    pub fn directions(&self, i: usize) -> ([f64; 3], [f64; 3]) {
+        let (i_th, i_td, i_pd) = split_cell(self.cell(i));
+        directions_from_half_diff_sc(
+            self.trig.theta_h[i_th],
+            self.trig.zero,
+            self.trig.theta_d[i_td],
+            self.trig.phi_d[i_pd],
+        )
+    }
+
+    /// Sample i's record, exactly as [`MerlTable::samples`] makes it.
+    pub fn sample(&self, i: usize) -> MeasuredSample {
+        let (i_th, i_td, i_pd) = split_cell(self.cell(i));
+        let (th, td, pd) = MerlTable::node_angles(i_th, i_td, i_pd);
+        let (wi, wo) = self.directions(i);
+        sample_of(node_half_diff(th, td, pd), self.rgb(i), wi, wo)
+    }
+
+    /// Cells of the table that are not samples (missing or below the horizon).
+    pub fn missing(&self) -> usize {
+        MerlTable::CELLS - self.len()
+    }
+}
+
+/// (i_th, i_td, i_pd) of a cell index.
+#[inline]
+fn split_cell(at: usize) -> (usize, usize, usize) {
+    let (row, i_pd) = (at / MerlTable::RES_PHI_D, at % MerlTable::RES_PHI_D);
+    (
+        row / MerlTable::RES_THETA_D,
+        row % MerlTable::RES_THETA_D,
+        i_pd,
+    )
 }
 
 /// A consecutive run of sample cells ([`MerlTable::map_cell_pieces`]).
@@ -536,6 +712,22 @@ impl SampleCell {
     #[inline]
     pub fn sample(&self) -> MeasuredSample {
         sample_of(self.angles, self.rgb, self.wi, self.wo)
+    }
+}
+
+/// A node's half and difference angles (phi_h = 0), its elevations and
+/// azimuths left 0 for [`sample_of`].
+#[inline(always)]
+fn node_half_diff(theta_h: f64, theta_d: f64, phi_d: f64) -> Angles {
+    Angles {
+        theta_h,
+        phi_h: 0.0,
+        theta_d,
+        phi_d,
+        theta_i: 0.0,
+        phi_i: 0.0,
+        theta_o: 0.0,
+        phi_o: 0.0,
     }
 }
 
@@ -647,6 +839,40 @@ mod tests {
             assert_eq!(got.missing, missing);
             assert_eq!(got.samples.len() + got.missing, MerlTable::CELLS);
             assert!(got.samples == expected, "{threads} threads");
+        }
+    }
+
+    /// The compact samples are `samples()`, index for index: the same
+    /// records, elevations, values and rows, for any thread count.
+    #[test]
+    fn compact_samples_are_the_samples_for_any_thread_count() {
+        let table = MerlTable::from_fn(|th, td, pd| {
+            ((th - 2.0 * td + 3.0 * pd).sin() > -0.6).then_some([th + 0.1, td, pd * 2.0])
+        });
+        let all = table.samples("t");
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let grid = pool.install(|| MerlSamples::new(table.clone(), "t"));
+            assert_eq!(grid.len(), all.samples.len());
+            assert_eq!(grid.missing(), all.missing);
+            let mut next = 0;
+            for row in 0..MERL_ROWS {
+                let r = grid.row(row);
+                assert_eq!(r.start, next);
+                next = r.end;
+                for i in r {
+                    let s = &all.samples[i];
+                    assert_eq!(grid.sample(i), *s);
+                    assert_eq!(grid.theta(i), [s.angles.theta_i, s.angles.theta_o]);
+                    assert_eq!(grid.half_diff(i), (s.angles.theta_h, s.angles.theta_d));
+                    assert_eq!(grid.rgb(i), s.rgb);
+                    assert_eq!(grid.cell(i) / MerlTable::RES_PHI_D, row);
+                }
+            }
+            assert_eq!(next, grid.len());
         }
     }
 

@@ -399,47 +399,25 @@ pub(super) fn fit_table(
     config: &FitConfig,
     verbose: bool,
 ) -> Result<Fitted, CliError> {
-    let (table, samples) = super::read_measured(input, args.format)?;
-    crate::phases::mark("read + samples");
-    let fitted = match (args.target, args.budget) {
-        (Some(target), _) => {
-            // A rendering-PSNR target renders the input table once as the reference.
-            let reference = target.needs_render().then(|| {
-                crate::evaluation::Reference::new(
-                    super::table_bsdf(&table),
-                    &samples,
-                    Default::default(),
-                )
-            });
-            select(
-                &samples,
-                verbose,
-                config,
-                Selection::Target(target),
-                reference.as_ref(),
-            )?
-        }
+    let selection = match (args.target, args.budget) {
+        (Some(target), _) => Selection::Target(target),
         (None, Some(budget)) => {
             let metric = match args.budget_metric {
                 BudgetMetric::LogRmse => Target::LogRmse(f64::INFINITY),
                 BudgetMetric::RelRmse => Target::RelRmse(f64::INFINITY),
             };
-            select(
-                &samples,
-                verbose,
-                config,
-                Selection::Budget(budget, metric),
-                None,
-            )?
+            Selection::Budget(budget, metric)
         }
         (None, None) => {
             // Neither the samples nor the table are held during the sweeps
             // (the fit's peak memory): the table is read again for the
             // error measures (its samples made piece by piece, not all
-            // held), and refused if the file changed meanwhile.
-            let source = samples.source.clone();
+            // held), and refused if the file changed meanwhile. A MERL
+            // table's samples are never made as records.
+            let data = super::read_fit_data(input, args.format)?;
+            crate::phases::mark("read + samples");
+            let source = input.display().to_string();
             let stamp = file_stamp(input);
-            drop(table);
             let reread = || {
                 let changed = |problem: String| FitError::Remeasure {
                     source_name: source.clone(),
@@ -452,11 +430,25 @@ pub(super) fn fit_table(
                     .map_err(|e| changed(format!("reading it again: {e}")))
             };
             let (bar, mut observer) = progress(config, verbose);
-            let fitted = crate::fit::fit_owned(samples, reread, config, &mut observer)?;
+            let fitted = crate::fit::fit_owned(data, reread, config, &mut observer)?;
             bar.finish_and_clear();
             return write_fitted(output, args, fitted);
         }
     };
+    let (table, samples) = super::read_measured(input, args.format)?;
+    crate::phases::mark("read + samples");
+    // A rendering-PSNR target renders the input table once as the reference.
+    let reference = match &selection {
+        Selection::Target(target) if target.needs_render() => {
+            Some(crate::evaluation::Reference::new(
+                super::table_bsdf(&table),
+                &samples,
+                Default::default(),
+            ))
+        }
+        _ => None,
+    };
+    let fitted = select(&samples, verbose, config, selection, reference.as_ref())?;
     drop(table);
     write_fitted(output, args, fitted)
 }

@@ -70,12 +70,38 @@ pub fn read_measured(
     let table = npf_data_loaders::Table::read(path, format.map(Into::into))?;
     let samples = table.samples(&path.display().to_string());
     if samples.samples.is_empty() {
-        return Err(CliError::Message(format!(
-            "{}: the table holds no valid samples (all cells missing)",
-            path.display()
-        )));
+        return Err(no_samples(path));
     }
     Ok((table, samples))
+}
+
+/// Reads a measured table as [`read_measured`] does, into the data a fit
+/// reads: a MERL table's grid ([`npf_data_loaders::MerlSamples`], no
+/// per-sample records), other tables' samples.
+pub fn read_fit_data(
+    path: &Path,
+    format: Option<FormatArg>,
+) -> Result<crate::samples::SampleData<'static>, CliError> {
+    use crate::samples::SampleSource;
+    let source = path.display().to_string();
+    let data: crate::samples::SampleData =
+        match npf_data_loaders::Table::read(path, format.map(Into::into))? {
+            npf_data_loaders::Table::Merl(t) => {
+                npf_data_loaders::MerlSamples::new(t, &source).into()
+            }
+            table => table.samples(&source).into(),
+        };
+    if data.sample_count() == 0 {
+        return Err(no_samples(path));
+    }
+    Ok(data)
+}
+
+fn no_samples(path: &Path) -> CliError {
+    CliError::Message(format!(
+        "{}: the table holds no valid samples (all cells missing)",
+        path.display()
+    ))
 }
 
 /// The table as the reference BSDF of a comparison (MERL lookup, UTIA
