@@ -834,10 +834,19 @@ fn run_kind(
     observer: &mut dyn FnMut(usize, &SweepReport),
 ) -> Result<Produced, FitError> {
     config.validate()?;
-    check_representable(&samples)?;
+    // The value check and the floor rule on the samples' own type, not
+    // through `SampleData`'s match a sample: their passes then inline the
+    // reads.
+    match &samples {
+        SampleData::Records(s) => check_representable(&**s),
+        SampleData::Merl(m) => check_representable(&**m),
+    }?;
     crate::phases::mark("check values");
     let layout = config.layout_for(&samples);
-    let floor = config.floor_rule(&samples);
+    let floor = match &samples {
+        SampleData::Records(s) => config.floor_rule(&**s),
+        SampleData::Merl(m) => config.floor_rule(&**m),
+    };
     let isotropic = samples.is_isotropic();
     let so = config.sample_options_with(&floor, isotropic);
     // The rule's parallel passes left their freed buffers in the worker

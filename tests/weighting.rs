@@ -283,3 +283,87 @@ fn fit_one_lobe(
     assert!(res.objective <= res.initial_objective);
     res.model
 }
+
+/// The floor rule (parallel passes) is a plain serial count and median of
+/// rho cos theta_i over the cut-off, on records and on a MERL grid
+/// (`npf fit` calls it on `MerlSamples` itself, not through `SampleData`),
+/// for 1 and 3 threads, on clean and clamped data and with the median off.
+#[test]
+fn the_floor_rule_is_the_serial_rule_on_records_and_grid_for_any_thread_count() {
+    use npf_data_loaders::{MeasuredSamples, MerlSamples, MerlTable};
+    let truth = known_factor_model(Layout::default(), &[0.25]);
+    let clean = to_merl(&truth);
+    // A clamped copy: the cells of a band of theta_h rows set to exactly 0.
+    let mut raw = clean.raw().to_vec();
+    for (i, v) in raw.iter_mut().enumerate() {
+        let i_th = (i % MerlTable::CELLS) / (90 * 180);
+        if (30..34).contains(&i_th) {
+            *v = 0.0;
+        }
+    }
+    let clamped = MerlTable::from_raw(raw);
+    let two_pass = |c: &FitConfig, s: &MeasuredSamples| {
+        let cut = c.max_theta.to_radians();
+        let inside: Vec<_> = s
+            .samples
+            .iter()
+            .filter(|x| x.angles.theta_i <= cut && x.angles.theta_o <= cut)
+            .collect();
+        let zeros = (0..3)
+            .map(|ch| inside.iter().filter(|x| x.rgb[ch] == 0.0).count() as f64)
+            .map(|z| z / inside.len() as f64)
+            .fold(0.0, f64::max);
+        let mut v: Vec<f64> = inside
+            .iter()
+            .map(|x| x.rgb.iter().sum::<f64>() / 3.0 * x.angles.theta_i.cos().max(0.0))
+            .collect();
+        v.sort_by(f64::total_cmp);
+        (zeros, v[v.len() / 2])
+    };
+    let configs = [
+        FitConfig::default(),
+        FitConfig {
+            epsilon_median: 0.5,
+            ..Default::default()
+        },
+        FitConfig {
+            epsilon_median: 0.0,
+            epsilon_median_untrusted: 0.0,
+            ..Default::default()
+        },
+    ];
+    let mut untrusted_seen = false;
+    for table in [&clean, &clamped] {
+        let records = table.samples("t");
+        let grid = MerlSamples::new(table.clone(), "t");
+        for c in &configs {
+            let (zero_fraction, median) = two_pass(c, &records);
+            let asymmetry = c.grazing_asymmetry(&records).0;
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                for rule in [
+                    pool.install(|| c.floor_rule(&records)),
+                    pool.install(|| c.floor_rule(&grid)),
+                ] {
+                    assert_eq!(rule.zero_fraction, zero_fraction);
+                    assert_eq!(rule.grazing_asymmetry.to_bits(), asymmetry.to_bits());
+                    untrusted_seen |= rule.untrusted;
+                    if rule.median_fraction > 0.0 {
+                        assert_eq!(rule.median, median, "{threads} threads");
+                        let want = c
+                            .epsilon
+                            .max(rule.median_fraction * median)
+                            .min(npf::fit::MAX_EPSILON);
+                        assert_eq!(rule.epsilon, want);
+                    } else {
+                        assert_eq!((rule.median, rule.epsilon), (0.0, c.epsilon));
+                    }
+                }
+            }
+        }
+    }
+    assert!(untrusted_seen, "the clamped table takes the other branch");
+}

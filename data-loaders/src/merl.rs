@@ -526,7 +526,7 @@ impl MerlSamples {
                 let mut k = 0;
                 table.row_cells_at(&trig, i_th, 0..per_row, |at, _, _, wi, wo| {
                     c[k] = (i_th * per_row + at) as u32;
-                    t[k] = [angles_of(wi).0, angles_of(wo).0];
+                    t[k] = [elevation(wi), elevation(wo)];
                     k += 1;
                 });
                 assert_eq!(k, c.len(), "the two passes over a row disagree");
@@ -623,6 +623,13 @@ impl MerlSamples {
     pub fn missing(&self) -> usize {
         MerlTable::CELLS - self.len()
     }
+}
+
+/// A direction's elevation, `angles_of(v).0` bit for bit without its
+/// azimuth: an atan2 a sample that `MerlSamples::new` would throw away.
+#[inline(always)]
+fn elevation(v: [f64; 3]) -> f64 {
+    v[2].clamp(-1.0, 1.0).acos()
 }
 
 /// (i_th, i_td, i_pd) of a cell index.

@@ -80,30 +80,26 @@ pub(crate) fn read_exact_size_as(
 /// [`read_exact_size_as`] for a file of a `header` and little-endian f64
 /// values: the values are read straight into their own buffer (no copy of
 /// the whole file as bytes first, no second 35 MB allocation for a MERL
-/// table). The same checks and errors.
+/// table), in pieces on rayon's current pool where the platform reads at
+/// an offset (the copy out of the page cache and the buffer's page faults
+/// were one core's 0.05-0.08 s for a MERL table). The same checks and errors.
 pub(crate) fn read_header_f64s(
     path: &Path,
     expected: u64,
     header: &mut [u8],
     what: &'static str,
 ) -> Result<Vec<f64>, LoadError> {
-    let mut file = open_sized(path, expected, what)?;
+    let file = open_sized(path, expected, what)?;
     let count = (expected as usize).saturating_sub(header.len()) / 8;
     let mut values = vec![0.0f64; count];
     // SAFETY: every bit pattern is a valid f64, and u8 needs no alignment.
     let body =
         unsafe { std::slice::from_raw_parts_mut(values.as_mut_ptr().cast::<u8>(), count * 8) };
-    let mut got = 0u64;
-    for buf in [header, body] {
-        let n = fill(&mut file, buf).map_err(|e| LoadError::io(path, e))?;
-        got += n as u64;
-        if n < buf.len() {
-            break;
-        }
-    }
+    let io = |e| LoadError::io(path, e);
+    let mut got = read_parts(&file, 0, header, body).map_err(io)?;
     // One byte more tells a file that grew meanwhile.
     if got == expected {
-        got += fill(&mut file, &mut [0u8; 1]).map_err(|e| LoadError::io(path, e))? as u64;
+        got += read_parts(&file, expected, &mut [0u8; 1], &mut []).map_err(io)?;
     }
     if got != expected {
         return Err(LoadError::WrongSize {
@@ -119,7 +115,79 @@ pub(crate) fn read_header_f64s(
     Ok(values)
 }
 
+/// Bytes the parallel read gives one task: a MERL table is 17 of them.
+#[cfg(unix)]
+const READ_PIECE: usize = 2 << 20;
+
+/// Reads `head` then `body` from `file` at byte `start` on: each until it
+/// is full or the file ends, `body` in pieces at their offsets on rayon's
+/// current pool. The bytes read up to the first short piece; the first
+/// error in file order.
+#[cfg(unix)]
+fn read_parts(
+    file: &std::fs::File,
+    start: u64,
+    head: &mut [u8],
+    body: &mut [u8],
+) -> io::Result<u64> {
+    use rayon::prelude::*;
+    use std::os::unix::fs::FileExt;
+    let fill_at = |buf: &mut [u8], mut offset: u64| -> io::Result<usize> {
+        let mut at = 0;
+        while at < buf.len() {
+            match file.read_at(&mut buf[at..], offset) {
+                Ok(0) => break,
+                Ok(n) => (at, offset) = (at + n, offset + n as u64),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(at)
+    };
+    let n_head = fill_at(head, start)?;
+    let mut got = n_head as u64;
+    if n_head == head.len() {
+        let base = start + head.len() as u64;
+        let pieces: Vec<(usize, io::Result<usize>)> = body
+            .par_chunks_mut(READ_PIECE)
+            .enumerate()
+            .map(|(k, piece)| (piece.len(), fill_at(piece, base + (k * READ_PIECE) as u64)))
+            .collect();
+        for (len, n) in pieces {
+            let n = n?;
+            got += n as u64;
+            if n < len {
+                break;
+            }
+        }
+    }
+    Ok(got)
+}
+
+/// [`read_parts`] where files are not read at offsets: one sequential read.
+#[cfg(not(unix))]
+fn read_parts(
+    file: &std::fs::File,
+    start: u64,
+    head: &mut [u8],
+    body: &mut [u8],
+) -> io::Result<u64> {
+    use std::io::Seek;
+    let mut f = file;
+    f.seek(io::SeekFrom::Start(start))?;
+    let mut got = 0u64;
+    for buf in [head, body] {
+        let n = fill(&mut f, buf)?;
+        got += n as u64;
+        if n < buf.len() {
+            break;
+        }
+    }
+    Ok(got)
+}
+
 /// Reads into `buf` until it is full or the file ends: the bytes read.
+#[cfg(not(unix))]
 fn fill(file: &mut impl std::io::Read, buf: &mut [u8]) -> io::Result<usize> {
     let mut at = 0;
     while at < buf.len() {
@@ -188,4 +256,52 @@ mod finite_tests {
         raw[3 * cells - 1] = f64::INFINITY; // in the short last block
         assert_eq!(at(&raw), Some(3 * cells - 1));
     }
+}
+
+#[cfg(test)]
+mod read_tests {
+    use super::*;
+
+    /// The pieces read at their offsets are the file, for any thread
+    /// count; a buffer longer than the file is filled up to its end and
+    /// the count says where it ended (a file that shrank), and the byte
+    /// past the end reads as none (a file that did not grow).
+    #[test]
+    fn pieces_read_the_file_and_count_what_they_got() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f");
+        let len = 3 * READ_PIECE_FOR_TESTS + 12_345;
+        let bytes: Vec<u8> = (0..len).map(|i| (i * 7 + i / 251) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let file = std::fs::File::open(&path).unwrap();
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let (mut head, mut body) = (vec![0u8; 12], vec![0u8; len - 12]);
+                let got = read_parts(&file, 0, &mut head, &mut body).unwrap();
+                assert_eq!(got, len as u64);
+                assert_eq!(head[..], bytes[..12]);
+                assert!(body[..] == bytes[12..], "{threads} threads");
+                // Asked for more than there is: the file's bytes, then zeros.
+                let mut long = vec![0u8; len + READ_PIECE_FOR_TESTS];
+                let got = read_parts(&file, 0, &mut [], &mut long).unwrap();
+                assert_eq!(got, len as u64);
+                assert!(long[..len] == bytes[..] && long[len..].iter().all(|&b| b == 0));
+                // A short header stops the read there.
+                let mut head = vec![0u8; 20];
+                let got = read_parts(&file, len as u64 - 5, &mut head, &mut body).unwrap();
+                assert_eq!(got, 5);
+                let past = |at: u64| read_parts(&file, at, &mut [0u8; 1], &mut []).unwrap();
+                assert_eq!((past(len as u64), past(len as u64 - 1)), (0, 1));
+            });
+        }
+    }
+
+    #[cfg(unix)]
+    const READ_PIECE_FOR_TESTS: usize = READ_PIECE;
+    #[cfg(not(unix))]
+    const READ_PIECE_FOR_TESTS: usize = 1 << 20;
 }
