@@ -295,7 +295,7 @@ impl<'a> Executor<'a> {
             // to a worse stationary point (polyurethane-foam's coarse level).
             let crawling = opts
                 .gauss_newton_below
-                .is_none_or(|b| prev <= 0.0 || (prev - e) / prev < b);
+                .map_or(true, |b| prev <= 0.0 || (prev - e) / prev < b);
             if newton_on && gn_wait > 0 {
                 gn_wait -= 1;
             } else if newton_on && crawling {
