@@ -178,6 +178,7 @@ fn one(path: &Path, s: &Settings) -> Result<String, String> {
         // As `npf fit` on an isotropic table.
         keep_g: FitConfig::default().keep_coarse_g.unwrap_or(true),
         kept_g_tol: FitConfig::default().kept_g_tol.unwrap_or(2.0 * s.tol),
+        gauss_newton: FitConfig::default().coarse_gauss_newton,
     };
     // Owned: the samples are freed before the full set's sweeps (as in
     // `npf fit`) and made again from the table for the error measures.

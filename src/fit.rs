@@ -151,6 +151,10 @@ pub struct FitConfig {
     /// `None` uses them on anisotropic layouts only (where AWLS alone
     /// leaves blended lobes slowly: docs/anisotropic.md), `Some` forces.
     pub gauss_newton: Option<bool>,
+    /// Joint Gauss-Newton steps on the coarse levels, where AWLS crawls
+    /// ([`crate::coarse::Schedule::gauss_newton`]), whatever
+    /// `gauss_newton` says of the full set.
+    pub coarse_gauss_newton: bool,
     /// Grazing taper (degrees): past it a sample's weight falls linearly to
     /// 0 at the horizon ([`SampleOptions::taper_from_deg`]); `None`: none.
     pub taper_from: Option<f64>,
@@ -206,6 +210,7 @@ impl Default for FitConfig {
             keep_coarse_g: None,
             kept_g_tol: None,
             gauss_newton: None,
+            coarse_gauss_newton: false,
             taper_from: s.taper_from_deg,
             masking: o.masking,
             pool_scale_below: s.pool_scale_below_deg,
@@ -634,6 +639,7 @@ impl FitConfig {
             diffuse: self.diffuse,
             gauss_newton: self.gauss_newton.unwrap_or(false),
             masking: self.masking,
+            ..FitOptions::default()
         }
     }
 
@@ -869,6 +875,7 @@ fn run_kind(
             max_sweeps: config.coarse_max_sweeps,
             keep_g: config.keep_coarse_g.unwrap_or(layout.is_isotropic()),
             kept_g_tol: config.kept_g_tol.unwrap_or(2.0 * config.tol),
+            gauss_newton: config.coarse_gauss_newton,
         };
         let fitted = crate::coarse::fit(samples, (layout, so), schedule, opts, start, &mut obs)
             .map_err(|e| match e {

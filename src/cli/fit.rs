@@ -106,6 +106,11 @@ pub struct FitFlags {
     /// anisotropic tables only).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
     pub gauss_newton: Option<bool>,
+    /// Joint Gauss-Newton steps on the coarse levels once their sweeps
+    /// crawl (8 CG iterations a step), whatever --gauss-newton says of the
+    /// full set: on, off (default: off).
+    #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    pub coarse_gauss_newton: Option<bool>,
     /// Worker threads (0: all cores). Results are identical for any count.
     #[arg(long, default_value_t = defaults().threads)]
     pub threads: usize,
@@ -173,6 +178,7 @@ impl FitFlags {
             keep_coarse_g: self.keep_coarse_g,
             kept_g_tol: self.kept_g_tol,
             gauss_newton: self.gauss_newton,
+            coarse_gauss_newton: self.coarse_gauss_newton.unwrap_or(base.coarse_gauss_newton),
             taper_from: self.taper_from,
             masking: self.masking,
             pool_scale_below: Some(self.pool_scale_below).filter(|&d| d > 0.0),
@@ -198,7 +204,9 @@ pub fn flag_message(e: &FitError) -> String {
             S::Tolerance(t) => format!("--tol must be a non-negative number, got {t}"),
             S::MonotoneFrom(t) => format!("--d-monotone-from must be 0 to 90 degrees, got {t}"),
             S::SmoothG(s) => format!("--smooth-g must be positive, got {s}"),
-            S::MaskedLobe(_) | S::Start(_) => e.to_string(),
+            S::MaskedLobe(_) | S::Start(_) | S::GaussNewtonCg | S::GaussNewtonBelow(_) => {
+                e.to_string()
+            }
         },
         FitError::Threads { .. } | FitError::TooManyThreads { .. } => format!("--threads: {e}"),
         FitError::Range { name, .. } => format!("--{}: {e}", name.replace('_', "-")),

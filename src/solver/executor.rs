@@ -290,9 +290,15 @@ impl<'a> Executor<'a> {
             // The joint step's partials are those of the separable G G
             // product; the height-correlated form has its own G pass only.
             let newton_on = opts.gauss_newton && opts.masking == crate::model::Masking::Separable;
+            // With a threshold, the step waits for the crawl: early, fast
+            // sweeps are cheaper than it, and a step taken there can lead
+            // to a worse stationary point (polyurethane-foam's coarse level).
+            let crawling = opts
+                .gauss_newton_below
+                .map_or(true, |b| prev <= 0.0 || (prev - e) / prev < b);
             if newton_on && gn_wait > 0 {
                 gn_wait -= 1;
-            } else if newton_on {
+            } else if newton_on && crawling {
                 let project = |t: &mut Factors, x: &Factors| {
                     apply_mask(t, &mask);
                     for (d, xd) in t.d.iter_mut().zip(&x.d) {

@@ -83,6 +83,7 @@ impl Packing {
 
 /// A sample's partial derivatives of the model value per channel with
 /// respect to each factor's interpolated value there.
+#[derive(Clone, Copy)]
 struct Partials {
     /// d v_C / d s_C^m (= F_C P_m).
     s: [[f64; 3]; MAX_LOBES],
@@ -174,10 +175,10 @@ enum Pass<'a> {
 
 /// One pass over the samples, summed per chunk in chunk order; dispatched
 /// once on the stencil widths (the built-in layouts' loops unrolled).
-fn pass(set: &FitSet, st: &State, pk: Packing, what: Pass) -> Vec<f64> {
+fn pass(set: &FitSet, st: &State, pk: Packing, what: Pass, pre: &[Partials]) -> Vec<f64> {
     match (set.d_st.width, set.f_st.width, set.gi_st.width) {
-        (4, 2, 8) => pass_n::<4, 2, 8>(set, st, pk, what),
-        (2, 2, 4) => pass_n::<2, 2, 4>(set, st, pk, what),
+        (4, 2, 8) => pass_n::<4, 2, 8>(set, st, pk, what, pre),
+        (2, 2, 4) => pass_n::<2, 2, 4>(set, st, pk, what, pre),
         _ => unreachable!("step() checks the widths"),
     }
 }
@@ -196,6 +197,7 @@ fn pass_n<const WD: usize, const WF: usize, const WG: usize>(
     st: &State,
     pk: Packing,
     what: Pass,
+    pre: &[Partials],
 ) -> Vec<f64> {
     let n = pk.len();
     let width = match what {
@@ -208,7 +210,7 @@ fn pass_n<const WD: usize, const WF: usize, const WG: usize>(
         .map(|ck| {
             let mut out = vec![0.0; width];
             for j in ck * CHUNK..((ck + 1) * CHUNK).min(set.len()) {
-                sample_terms::<WD, WF, WG>(set, st, pk, what, j, &mut out);
+                sample_terms::<WD, WF, WG>(set, st, pk, what, j, pre, &mut out);
             }
             out
         })
@@ -223,16 +225,25 @@ fn pass_n<const WD: usize, const WF: usize, const WG: usize>(
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn sample_terms<const WD: usize, const WF: usize, const WG: usize>(
     set: &FitSet,
     st: &State,
     pk: Packing,
     what: Pass,
     j: usize,
+    pre: &[Partials],
     out: &mut [f64],
 ) {
     let c = &st.cache[j];
-    let p = partials(set, st, j, c);
+    let computed;
+    let p = match pre.get(j) {
+        Some(p) => p,
+        None => {
+            computed = partials(set, st, j, c);
+            &computed
+        }
+    };
     let w = set.w[j];
     let lobes = pk.lobes;
     let (di, dw) = slots::<WD>(&set.d_st, j);
@@ -334,8 +345,13 @@ impl Default for Damping {
     }
 }
 
-/// Conjugate-gradient iterations per step.
-const CG_ITERATIONS: usize = 25;
+/// Conjugate-gradient iterations per step by default
+/// ([`FitOptions::gauss_newton_cg`]).
+pub const CG_ITERATIONS: usize = 25;
+/// Sets of at most this many samples keep every sample's partials for the
+/// step's passes (336 bytes a sample: 34 MB at the limit; a 1/32 MERL
+/// level holds ~35 k samples).
+const PRECOMPUTE_LIMIT: usize = 100_000;
 /// Fractions of the step tried in turn.
 const STEP_LENGTHS: [f64; 3] = [1.0, 0.5, 0.25];
 
@@ -368,7 +384,17 @@ pub(crate) fn step(
     }
     let pk = Packing::of(&st.factors);
     let n = pk.len();
-    let gd = pass(set, st, pk, Pass::GradientDiag);
+    // The partials depend on the current factors only, so on a set small
+    // enough (a coarse level) they are computed once for every pass.
+    let pre: Vec<Partials> = if set.len() <= PRECOMPUTE_LIMIT {
+        (0..set.len())
+            .into_par_iter()
+            .map(|j| partials(set, st, j, &st.cache[j]))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let gd = pass(set, st, pk, Pass::GradientDiag, &pre);
     let (grad, diag) = gd.split_at(n);
     let x0 = pk.pack(&st.factors);
     // Active set: a parameter at its bound 0 that the gradient pushes
@@ -405,11 +431,11 @@ pub(crate) fn step(
     let mut p = z.clone();
     let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
     let rz0 = rz;
-    for _ in 0..CG_ITERATIONS {
+    for _ in 0..opts.gauss_newton_cg {
         if !(rz > 1e-10 * rz0) {
             break;
         }
-        let mut hp = pass(set, st, pk, Pass::Product(&p));
+        let mut hp = pass(set, st, pk, Pass::Product(&p), &pre);
         stats.passes += 1;
         for k in 0..n {
             hp[k] = if free[k] {

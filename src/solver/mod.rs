@@ -105,10 +105,23 @@ pub struct FitOptions {
     /// factor ([`gauss_newton`]), kept only if it lowers the objective.
     #[serde(default)]
     pub gauss_newton: bool,
+    /// Conjugate-gradient iterations (passes over the samples) per joint
+    /// step at most.
+    #[serde(default = "default_gauss_newton_cg")]
+    pub gauss_newton_cg: usize,
+    /// Try the joint step only after sweeps that lowered the objective by
+    /// less than this fraction (where AWLS crawls); `None`: after every
+    /// sweep (as the back-off allows).
+    #[serde(default)]
+    pub gauss_newton_below: Option<f64>,
     /// How each lobe combines G at the two directions: separable (the
     /// paper's) or height-correlated, whose G pass is [`g2_update`].
     #[serde(default)]
     pub masking: crate::model::Masking,
+}
+
+fn default_gauss_newton_cg() -> usize {
+    gauss_newton::CG_ITERATIONS
 }
 
 fn all_channels() -> [[bool; 3]; MAX_LOBES] {
@@ -136,6 +149,8 @@ impl Default for FitOptions {
             channel_mask: all_channels(),
             diffuse: DiffuseKind::Lambert,
             gauss_newton: false,
+            gauss_newton_cg: gauss_newton::CG_ITERATIONS,
+            gauss_newton_below: None,
             masking: crate::model::Masking::Separable,
         }
     }
@@ -163,6 +178,12 @@ pub enum SolverError {
     /// A lobe that may light no channel.
     #[error("lobe {0} is masked in every channel")]
     MaskedLobe(usize),
+    /// No conjugate-gradient iteration for the joint step.
+    #[error("the joint step needs at least one conjugate-gradient iteration")]
+    GaussNewtonCg,
+    /// A joint-step threshold that is not a positive finite fraction.
+    #[error("the joint step's threshold must be a positive fraction, got {0}")]
+    GaussNewtonBelow(f64),
     /// A starting model on another layout (or lobe count) than the fit.
     #[error("the starting model does not match the fit: {0}")]
     Start(String),
@@ -188,6 +209,14 @@ impl FitOptions {
         if let Some(s) = self.smooth_g {
             if !(s > 0.0 && s.is_finite()) {
                 return Err(SolverError::SmoothG(s));
+            }
+        }
+        if self.gauss_newton_cg == 0 {
+            return Err(SolverError::GaussNewtonCg);
+        }
+        if let Some(b) = self.gauss_newton_below {
+            if !(b > 0.0 && b.is_finite()) {
+                return Err(SolverError::GaussNewtonBelow(b));
             }
         }
         if let Some(m) = (0..self.lobes).find(|&m| self.channel_mask[m] == [false; 3]) {
