@@ -213,7 +213,15 @@ fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
         ("Gauss-Newton", |s| matches!(s, Stage::GaussNewton)),
     ];
     let stages = || history.iter().flat_map(|r| &r.stages);
-    let split: Vec<String> = kinds
+    let tried = stages().filter(|s| s.stage == Stage::GaussNewton).count();
+    let kept = history.iter().filter(|r| r.gauss_newton).count();
+    // The joint step's entry only where the level tried one (an option).
+    let shown = if tried > 0 {
+        kinds.len()
+    } else {
+        kinds.len() - 1
+    };
+    let split: Vec<String> = kinds[..shown]
         .iter()
         .map(|(name, is)| {
             // + 0.0: an empty sum is -0.
@@ -225,10 +233,13 @@ fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
             format!("{name} {:.0} ms", t * 1e3)
         })
         .collect();
-    let tried = stages().filter(|s| s.stage == Stage::GaussNewton).count();
-    let kept = history.iter().filter(|r| r.gauss_newton).count();
+    let steps = if tried > 0 {
+        format!(" (steps {kept} of {tried} kept)")
+    } else {
+        String::new()
+    };
     eprintln!(
-        "npf timing: coarse 1/{factor} stages over {} sweeps: {} (steps {kept} of {tried} kept)",
+        "npf timing: coarse 1/{factor} stages over {} sweeps: {}{steps}",
         history.len(),
         split.join(", ")
     );
