@@ -843,16 +843,10 @@ fn run_kind(
     // The value check and the floor rule on the samples' own type, not
     // through `SampleData`'s match a sample: their passes then inline the
     // reads.
-    match &samples {
-        SampleData::Records(s) => check_representable(&**s),
-        SampleData::Merl(m) => check_representable(&**m),
-    }?;
+    crate::samples::on_data!(&samples, s => check_representable(s))?;
     crate::phases::mark("check values");
     let layout = config.layout_for(&samples);
-    let floor = match &samples {
-        SampleData::Records(s) => config.floor_rule(&**s),
-        SampleData::Merl(m) => config.floor_rule(&**m),
-    };
+    let floor = crate::samples::on_data!(&samples, s => config.floor_rule(s));
     let isotropic = samples.is_isotropic();
     let so = config.sample_options_with(&floor, isotropic);
     // The rule's parallel passes left their freed buffers in the worker

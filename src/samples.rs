@@ -185,17 +185,18 @@ impl FitSet {
 macro_rules! on_data {
     ($data:expr, $s:ident => $e:expr) => {
         match $data {
-            SampleData::Records($s) => {
-                let $s: &MeasuredSamples = $s;
+            $crate::samples::SampleData::Records($s) => {
+                let $s: &::npf_data_loaders::MeasuredSamples = $s;
                 $e
             }
-            SampleData::Merl($s) => {
-                let $s: &MerlSamples = $s;
+            $crate::samples::SampleData::Merl($s) => {
+                let $s: &::npf_data_loaders::MerlSamples = $s;
                 $e
             }
         }
     };
 }
+pub(crate) use on_data;
 
 impl SampleSource for SampleData<'_> {
     fn source_name(&self) -> &str {
