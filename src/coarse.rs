@@ -158,6 +158,22 @@ pub fn fit<'a>(
     start: Factors,
     observer: &mut dyn Observer,
 ) -> Result<CoarseFit, CoarseError> {
+    let run = (schedule, opts, start);
+    let nothing = |_: &SampleData| ();
+    fit_beside(samples, (layout, so), run, observer, nothing).map(|(f, ())| f)
+}
+
+/// [`fit`] with `beside(samples)` run after the full set is built, while
+/// the decimated levels run (the build's arm of the join then has a core
+/// to spare): work on the samples that the full set's sweeps do not need
+/// (the error measures' model-independent part), returned with the fit.
+pub fn fit_beside<'a, T: Send>(
+    samples: impl Into<SampleData<'a>>,
+    (layout, so): (Layout, SampleOptions),
+    (schedule, opts, start): (Schedule, FitOptions, Factors),
+    observer: &mut dyn Observer,
+    beside: impl FnOnce(&SampleData) -> T + Send,
+) -> Result<(CoarseFit, T), CoarseError> {
     let t0 = std::time::Instant::now();
     let samples = samples.into();
     let keep_g = schedule.keep_g && levels_run(&samples, layout, schedule, opts.lobes);
@@ -174,12 +190,14 @@ pub fn fit<'a>(
     let (set, coarse) = rayon::join(
         || {
             let set = FitSet::build_from(&samples, layout, so, g_use);
-            (set, t0.elapsed().as_secs_f64())
+            let built = t0.elapsed().as_secs_f64();
+            ((set, built), beside(&samples))
         },
         || levels_fit(&samples, (layout, so), schedule, opts, start),
     );
     drop(samples);
-    let (set, set_seconds) = (set.0?, set.1);
+    let ((set, set_seconds), beside) = set;
+    let set = set?;
     let (start, levels) = coarse?;
     // The decimated levels' sets and the build's temporaries are freed:
     // give their pages back before the full set's caches are allocated.
@@ -188,12 +206,13 @@ pub fn fit<'a>(
         .start_from(start)
         .observe(observer)
         .run()?;
-    Ok(CoarseFit {
+    let fitted = CoarseFit {
         result,
         levels,
         set_len: set.len(),
         set_seconds,
-    })
+    };
+    Ok((fitted, beside))
 }
 
 /// With `NPF_TIMING`, a level's wall time per kind of stage, summed over

@@ -7,7 +7,7 @@
 
 use crate::baselines::{fit_ggx, GgxParams};
 use crate::coarse::CoarseError;
-use crate::metrics::{compare_model, compare_model_table, Metrics};
+use crate::metrics::{compare_model, compare_model_table, MerlReference, Metrics};
 use crate::model::Layout;
 use crate::modelfile::FitInfo;
 use crate::samples::{
@@ -791,6 +791,9 @@ struct Produced {
     /// The coarse-to-fine schedule as run (absent: no decimated level ran),
     /// for the record: whether G was fitted on the full set or kept.
     coarse: Option<serde_json::Value>,
+    /// The error measures' model-independent part, where it was prepared
+    /// during the fit.
+    reference: Option<MerlReference>,
 }
 
 /// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
@@ -871,12 +874,32 @@ fn run_kind(
             kept_g_tol: config.kept_g_tol.unwrap_or(2.0 * config.tol),
             gauss_newton: config.coarse_gauss_newton,
         };
-        let fitted = crate::coarse::fit(samples, (layout, so), schedule, opts, start, &mut obs)
-            .map_err(|e| match e {
-                CoarseError::Samples(e) => FitError::Samples(e),
-                CoarseError::Solver(e) => FitError::Solver(e),
-            })?;
+        // The error measures' model-independent part (on a MERL grid whose
+        // model the fast path can measure) beside the coarse level: it then
+        // leaves the critical path after the fit.
+        let prepare = layout.is_isotropic() && !matches!(config.diffuse, DiffuseKind::OrenNayar);
+        let max_theta = config.max_theta;
+        let beside = move |samples: &SampleData| match samples {
+            SampleData::Merl(m) if prepare => {
+                let t = std::time::Instant::now();
+                let r = MerlReference::prepare(m, max_theta);
+                Some((r, t.elapsed().as_secs_f64()))
+            }
+            _ => None,
+        };
+        let run = (schedule, opts, start);
+        let (fitted, reference) =
+            crate::coarse::fit_beside(samples, (layout, so), run, &mut obs, beside).map_err(
+                |e| match e {
+                    CoarseError::Samples(e) => FitError::Samples(e),
+                    CoarseError::Solver(e) => FitError::Solver(e),
+                },
+            )?;
         crate::phases::note("full set built after", fitted.set_seconds);
+        let reference = reference.map(|(r, seconds)| {
+            crate::phases::note("measures' reference, beside the coarse level", seconds);
+            r
+        });
         for l in &fitted.levels {
             crate::phases::note(
                 &format!("coarse 1/{} ({} sweeps)", l.factor, l.sweeps),
@@ -905,6 +928,7 @@ fn run_kind(
             set_len: Some(fitted.set_len),
             floor,
             coarse,
+            reference,
         })
     };
     let mut produced = match config.model {
@@ -955,6 +979,7 @@ fn run_kind(
                 set_len: None,
                 floor,
                 coarse: None,
+                reference: None,
             })
         }
     }?;
@@ -1103,6 +1128,7 @@ fn fit_measured<'a>(
             set_len,
             floor,
             coarse,
+            reference,
         } = run_kind(samples, config, observer)?;
         // The sets and caches are freed; their pages go back before the
         // samples are made again.
@@ -1119,7 +1145,13 @@ fn fit_measured<'a>(
                         crate::phases::mark("energy scale");
                     }
                 }
-                compare_model_table(&t, config.max_theta, &result.model)
+                let prepared = match (&t, &reference) {
+                    (npf_data_loaders::Table::Merl(merl), Some(r)) => {
+                        r.compare(merl, config.max_theta, &result.model)
+                    }
+                    _ => None,
+                };
+                prepared.unwrap_or_else(|| compare_model_table(&t, config.max_theta, &result.model))
             }
         };
         crate::phases::mark("error measures");

@@ -9,7 +9,7 @@
 
 use crate::model::Model;
 use npf_data_loaders::geometry::Angles;
-use npf_data_loaders::merl::{MerlTable, SampleCell};
+use npf_data_loaders::merl::{MerlSamples, MerlTable, SampleCell};
 use npf_data_loaders::{MeasuredSample, MeasuredSamples, Table};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -169,6 +169,129 @@ pub(crate) fn map_model_cells<R: Send>(
     )
 }
 
+/// The model-independent part of the error measures against a MERL table
+/// ([`MerlReference::prepare`], from its samples, e.g. while the fit's
+/// coarse level runs): for each sample within the cut-off, in sample
+/// order, its cell, theta_i and theta_o, their cosines and ln(1 + rho cos)
+/// per channel; per piece of [`PIECE`] samples, the reference's own sums
+/// (sum (rho cos)^2, peak, count). [`MerlReference::compare`] then adds
+/// only the model's part, with the same arithmetic per value and the same
+/// pieces, so the same bits as [`compare_model_table`].
+pub struct MerlReference {
+    max_theta_deg: f64,
+    /// Per piece: its first in-cut sample's place in the arrays below, its
+    /// reference sums (sq_err, sq_log 0) and a hash of its rgb bits.
+    pieces: Vec<(usize, Sums, u64)>,
+    /// The arrays' length (the last piece's end).
+    len: usize,
+    cell: Vec<u32>,
+    theta: Vec<[f64; 2]>,
+    cos: Vec<[f64; 2]>,
+    log_ref: Vec<[f64; 3]>,
+}
+
+/// One step of the pieces' rgb hash (FxHash's): a check that the table
+/// measured against is the table prepared from, not a security measure.
+#[inline(always)]
+fn hash_rgb(h: u64, rgb: [f64; 3]) -> u64 {
+    rgb.iter().fold(h, |h, x| {
+        (h.rotate_left(5) ^ x.to_bits()).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95)
+    })
+}
+
+impl MerlReference {
+    /// The reference part of the measures of `samples` within
+    /// `max_theta_deg`, in one serial pass (it runs beside other work).
+    /// theta_i and theta_o are the samples' own, the `acos` the measures'
+    /// cell walk takes.
+    pub fn prepare(samples: &MerlSamples, max_theta_deg: f64) -> Self {
+        let cut = max_theta_deg.to_radians();
+        let inside = |i: usize| {
+            let [ti, to] = samples.theta(i);
+            !(ti > cut || to > cut)
+        };
+        // Exact sizes: these arrays live through the full set's sweeps.
+        let len = (0..samples.len()).filter(|&i| inside(i)).count();
+        let mut r = MerlReference {
+            max_theta_deg,
+            pieces: Vec::with_capacity(samples.len().div_ceil(PIECE)),
+            len,
+            cell: Vec::with_capacity(len),
+            theta: Vec::with_capacity(len),
+            cos: Vec::with_capacity(len),
+            log_ref: Vec::with_capacity(len),
+        };
+        for lo in (0..samples.len()).step_by(PIECE) {
+            let (start, mut acc, mut hash) = (r.cell.len(), Sums::default(), 0);
+            for i in lo..(lo + PIECE).min(samples.len()) {
+                if !inside(i) {
+                    continue;
+                }
+                let [ti, to] = samples.theta(i);
+                let (ci, co) = (ti.cos(), to.cos());
+                let rgb = samples.rgb(i);
+                acc.add_reference(rgb, ci);
+                hash = hash_rgb(hash, rgb);
+                r.cell.push(samples.cell(i) as u32);
+                r.theta.push([ti, to]);
+                r.cos.push([ci, co]);
+                r.log_ref.push(rgb.map(|x| (x * ci).ln_1p()));
+            }
+            r.pieces.push((start, acc, hash));
+        }
+        r
+    }
+
+    /// The measures of an isotropic `model` against `table` (the table the
+    /// reference was prepared from) within `max_theta_deg`: those of
+    /// [`compare_model_table`], bit for bit. `None` where this path does not
+    /// apply (another cut-off, an anisotropic model, a diffuse form that
+    /// reads the azimuths) or the table's values are not those prepared
+    /// from: the caller takes the general path.
+    pub fn compare(&self, table: &MerlTable, max_theta_deg: f64, model: &Model) -> Option<Metrics> {
+        if max_theta_deg.to_bits() != self.max_theta_deg.to_bits()
+            || !model.layout.is_isotropic()
+            || model.diffuse_form.reads_azimuth()
+        {
+            return None;
+        }
+        let raw = table.raw();
+        let rgb_at = |at: usize| {
+            std::array::from_fn(|c| raw[c * MerlTable::CELLS + at] * MerlTable::SCALE[c])
+        };
+        let pieces: Option<Vec<Sums>> = (0..self.pieces.len())
+            .into_par_iter()
+            .map_init(
+                // The (theta_h, theta_d) row last evaluated, its F and D values.
+                || (usize::MAX, [0.0; 3], vec![0.0; model.lobe_count()]),
+                |(row, f, d), p| {
+                    let (start, mut acc, hash) = self.pieces[p];
+                    let end = self.pieces.get(p + 1).map_or(self.len, |q| q.0);
+                    let mut seen = 0;
+                    for k in start..end {
+                        let at = self.cell[k] as usize;
+                        let r = at / MerlTable::RES_PHI_D;
+                        if *row != r {
+                            *row = r;
+                            let (i_th, i_td) =
+                                (r / MerlTable::RES_THETA_D, r % MerlTable::RES_THETA_D);
+                            let (th, td, _) = MerlTable::node_angles(i_th, i_td, 0);
+                            *f = model.half_diff_factors(th, td, d);
+                        }
+                        let ([ti, to], [ci, co]) = (self.theta[k], self.cos[k]);
+                        let v = model.eval_half_diff((*f, d), (ti, to), (ci, co), 1.0);
+                        let rgb = rgb_at(at);
+                        seen = hash_rgb(seen, rgb);
+                        acc.add_model(v, rgb, ci, self.log_ref[k]);
+                    }
+                    (seen == hash).then_some(acc)
+                },
+            )
+            .collect();
+        Some(in_order(pieces?).metrics(max_theta_deg))
+    }
+}
+
 /// The pieces' sums added in piece order.
 fn in_order(pieces: Vec<Sums>) -> Sums {
     pieces.into_iter().fold(Sums::default(), |a, b| Sums {
@@ -192,6 +315,27 @@ impl Sums {
             self.peak = self.peak.max(rgb[c] * ci);
         }
         self.count += 1;
+    }
+
+    /// [`Sums::add`]'s reference part: sum (rho cos)^2, the peak, the count.
+    #[inline(always)]
+    fn add_reference(&mut self, rgb: [f64; 3], ci: f64) {
+        for x in rgb {
+            self.sq_ref += (x * ci).powi(2);
+            self.peak = self.peak.max(x * ci);
+        }
+        self.count += 1;
+    }
+
+    /// [`Sums::add`]'s model part, `log_ref` the reference's ln(1 + rho
+    /// cos) per channel: each sum takes the same values in the same order.
+    #[inline(always)]
+    fn add_model(&mut self, v: [f64; 3], rgb: [f64; 3], ci: f64, log_ref: [f64; 3]) {
+        for c in 0..3 {
+            let e = (v[c] - rgb[c]) * ci;
+            self.sq_err += e * e;
+            self.sq_log += ((v[c] * ci).ln_1p() - log_ref[c]).powi(2);
+        }
     }
 
     /// The measures of these sums.
@@ -232,4 +376,88 @@ pub fn compare_model(samples: &MeasuredSamples, max_theta_deg: f64, model: &Mode
 /// (the same numbers as on `table.samples(..)`).
 pub fn compare_model_table(table: &Table, max_theta_deg: f64, model: &Model) -> Metrics {
     model_table_sums(table, max_theta_deg, model).metrics(max_theta_deg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{DiffuseForm, Layout, Masking};
+    use crate::synth::{known_factor_model, GgxLambert};
+
+    fn bits(m: &Metrics) -> (usize, [u64; 3]) {
+        let v = [m.cos_rmse, m.rel_cos_rmse, m.log_rmse];
+        (m.samples, v.map(f64::to_bits))
+    }
+
+    /// The measures from a prepared reference are [`compare_model_table`]'s
+    /// to the bit, for any thread count, on a MERL table with missing cells
+    /// and for models of every kind the path takes (separable and
+    /// height-correlated masking, an energy-coupled diffuse form, a
+    /// multiple-scattering term, the checked-in 822-parameter fit); it
+    /// declines what it does not cover and a table other than its own.
+    #[test]
+    fn prepared_measures_are_the_table_measures_to_the_bit() {
+        let brdf = GgxLambert {
+            kd: [0.3, 0.2, 0.1],
+            f0: [0.9, 0.6, 0.3],
+            alpha: 0.2,
+        };
+        let table = MerlTable::from_fn(|th, td, pd| {
+            // Some cells missing, scattered over the rows.
+            if (th * 1e3) as usize % 7 == 3 && pd > 1.0 {
+                return None;
+            }
+            let a = Angles::from_half_diff(th, 0.0, td, pd);
+            brdf.eval_angles(&a)
+        });
+        let known = known_factor_model(Layout::default(), &[0.1, 0.4]);
+        let mut coupled = known.clone();
+        coupled.masking = Masking::HeightCorrelated;
+        coupled.diffuse_form = crate::energy::coupled::energy_coupled_form(&known);
+        let mut compensated = known.clone();
+        compensated.compensation = Some(crate::energy::coupled::compensation(&known));
+        let fitted = crate::modelfile::read(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fits/ggx-lambert.json"),
+        )
+        .unwrap()
+        .model;
+        let samples = MerlSamples::new(table.clone(), "t");
+        let whole = Table::Merl(table.clone());
+        for max_theta in [85.0, 60.0] {
+            let reference = MerlReference::prepare(&samples, max_theta);
+            for (label, model) in [
+                ("known", &known),
+                ("coupled", &coupled),
+                ("compensated", &compensated),
+                ("fitted", &fitted),
+            ] {
+                let want = compare_model_table(&whole, max_theta, model);
+                assert!(want.samples > 1000 && want.log_rmse > 0.0, "{label}");
+                for threads in [1, 3] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let got = pool.install(|| reference.compare(&table, max_theta, model));
+                    let got = got.unwrap_or_else(|| panic!("{label}: declined"));
+                    assert_eq!(bits(&got), bits(&want), "{label}, {max_theta}, {threads}");
+                }
+            }
+        }
+        let reference = MerlReference::prepare(&samples, 85.0);
+        // Another cut-off, a form that reads the azimuths, another table.
+        assert!(reference.compare(&table, 80.0, &known).is_none());
+        let mut oren = known.clone();
+        oren.diffuse_form = DiffuseForm::OrenNayar { sigma: 0.3 };
+        assert!(reference.compare(&table, 85.0, &oren).is_none());
+        let mut raw = table.raw().to_vec();
+        let cut = 85f64.to_radians();
+        let inside = (samples.len() / 2..samples.len())
+            .find(|&i| samples.theta(i).iter().all(|&t| t <= cut))
+            .unwrap();
+        let at = samples.cell(inside);
+        raw[at] *= 1.5;
+        let other = MerlTable::from_raw(raw);
+        assert!(reference.compare(&other, 85.0, &known).is_none());
+    }
 }

@@ -530,3 +530,37 @@ fn the_energy_scale_scales_each_channel_by_the_recorded_ratio() {
         on.result.model.diffuse
     );
 }
+
+/// `npf fit`'s path on a MERL table (`fit_owned` on its grid): the error
+/// measures, whose reference part is prepared during the fit, are those of
+/// `compare_model_table` against the table for the final model, to the
+/// bit, with the post-fit energy scale (the untrusted tables' path) and
+/// without it, for 1 and 2 threads.
+#[test]
+fn the_grid_fits_measures_are_the_tables_to_the_bit() {
+    let truth = known_factor_model(Layout::default(), &[0.05, 0.2, 0.5]);
+    let table = to_merl(&truth);
+    for (scale, threads) in [(Some(false), 1), (Some(false), 2), (Some(true), 2)] {
+        let config = npf::fit::FitConfig {
+            max_sweeps: 2,
+            threads,
+            energy_scale: scale,
+            ..Default::default()
+        };
+        let grid = npf::loaders::MerlSamples::new(table.clone(), "t");
+        let again = || Ok(npf::loaders::Table::Merl(table.clone()));
+        let fitted = npf::fit::fit_owned(grid, again, &config, &mut |_, _| {}).unwrap();
+        let scaled = fitted.info.selection.as_ref().unwrap().get("energy_scale");
+        assert_eq!(scaled.is_some(), scale == Some(true));
+        let want = npf::metrics::compare_model_table(
+            &npf::loaders::Table::Merl(table.clone()),
+            config.max_theta,
+            &fitted.result.model,
+        );
+        let bits =
+            |m: &npf::metrics::Metrics| [m.cos_rmse, m.rel_cos_rmse, m.log_rmse].map(f64::to_bits);
+        assert!(want.samples > 1000 && want.log_rmse > 0.0);
+        assert_eq!(fitted.metrics.samples, want.samples);
+        assert_eq!(bits(&fitted.metrics), bits(&want), "{scale:?}, {threads}");
+    }
+}
