@@ -1066,13 +1066,18 @@ fn scalable(config: &FitConfig, result: &FitResult) -> bool {
 /// applies it, scales d and every lobe's s per channel (factors and model
 /// alike; the recorded objective stays the sweeps'). Returns the record.
 fn scale_energy(
-    table: &npf_data_loaders::merl::MerlTable,
+    (table, reference): (&npf_data_loaders::merl::MerlTable, Option<&MerlReference>),
     max_theta: f64,
     result: &mut FitResult,
 ) -> serde_json::Value {
-    use crate::energy::scale::{applies, energy_ratio, DEFAULT_RULE};
+    use crate::energy::scale::{applies, energy_ratio, energy_ratio_prepared, DEFAULT_RULE};
+    let model = &result.model;
+    let prepared =
+        reference.and_then(|r| energy_ratio_prepared(r, table, max_theta, &DEFAULT_RULE, model));
     // `scalable` admits isotropic models only.
-    let k = energy_ratio(table, max_theta, &DEFAULT_RULE, &result.model).unwrap_or([1.0; 3]);
+    let k = prepared
+        .or_else(|| energy_ratio(table, max_theta, &DEFAULT_RULE, model))
+        .unwrap_or([1.0; 3]);
     let applied = applies(&DEFAULT_RULE, &k);
     if applied {
         let f = &mut result.factors;
@@ -1141,7 +1146,8 @@ fn fit_measured<'a>(
                 crate::phases::mark("re-read");
                 if let npf_data_loaders::Table::Merl(merl) = &t {
                     if config.energy_scale.unwrap_or(floor.untrusted) && scalable(config, &result) {
-                        energy = Some(scale_energy(merl, config.max_theta, &mut result));
+                        let table = (merl, reference.as_ref());
+                        energy = Some(scale_energy(table, config.max_theta, &mut result));
                         crate::phases::mark("energy scale");
                     }
                 }

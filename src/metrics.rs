@@ -249,6 +249,29 @@ impl MerlReference {
     /// reads the azimuths) or the table's values are not those prepared
     /// from: the caller takes the general path.
     pub fn compare(&self, table: &MerlTable, max_theta_deg: f64, model: &Model) -> Option<Metrics> {
+        let pieces = self.map_cells(
+            table,
+            max_theta_deg,
+            model,
+            |p| self.pieces[p].1,
+            |acc, c| acc.add_model(c.value, c.rgb, c.cos[0], c.log_ref),
+        )?;
+        Some(in_order(pieces).metrics(max_theta_deg))
+    }
+
+    /// Visits the prepared cells of `table` in sample order with an
+    /// isotropic `model`'s value there (the same bits as
+    /// [`map_model_cells`]): `visit(acc, cell)` into one `init(piece)` per
+    /// piece of [`PIECE`] samples, the pieces computed in parallel and
+    /// returned in order. `None` as for [`MerlReference::compare`].
+    pub(crate) fn map_cells<R: Send>(
+        &self,
+        table: &MerlTable,
+        max_theta_deg: f64,
+        model: &Model,
+        init: impl Fn(usize) -> R + Sync + Send,
+        visit: impl Fn(&mut R, &PreparedCell) + Sync,
+    ) -> Option<Vec<R>> {
         if max_theta_deg.to_bits() != self.max_theta_deg.to_bits()
             || !model.layout.is_isotropic()
             || model.diffuse_form.reads_azimuth()
@@ -259,14 +282,22 @@ impl MerlReference {
         let rgb_at = |at: usize| {
             std::array::from_fn(|c| raw[c * MerlTable::CELLS + at] * MerlTable::SCALE[c])
         };
-        let pieces: Option<Vec<Sums>> = (0..self.pieces.len())
+        (0..self.pieces.len())
             .into_par_iter()
             .map_init(
-                // The (theta_h, theta_d) row last evaluated, its F and D values.
-                || (usize::MAX, [0.0; 3], vec![0.0; model.lobe_count()]),
-                |(row, f, d), p| {
-                    let (start, mut acc, hash) = self.pieces[p];
+                // The (theta_h, theta_d) row last evaluated, its angles, F and D values.
+                || {
+                    (
+                        usize::MAX,
+                        (0.0, 0.0),
+                        [0.0; 3],
+                        vec![0.0; model.lobe_count()],
+                    )
+                },
+                |(row, half_diff, f, d), p| {
+                    let (start, _, hash) = self.pieces[p];
                     let end = self.pieces.get(p + 1).map_or(self.len, |q| q.0);
+                    let mut acc = init(p);
                     let mut seen = 0;
                     for k in start..end {
                         let at = self.cell[k] as usize;
@@ -276,20 +307,40 @@ impl MerlReference {
                             let (i_th, i_td) =
                                 (r / MerlTable::RES_THETA_D, r % MerlTable::RES_THETA_D);
                             let (th, td, _) = MerlTable::node_angles(i_th, i_td, 0);
+                            *half_diff = (th, td);
                             *f = model.half_diff_factors(th, td, d);
                         }
                         let ([ti, to], [ci, co]) = (self.theta[k], self.cos[k]);
-                        let v = model.eval_half_diff((*f, d), (ti, to), (ci, co), 1.0);
                         let rgb = rgb_at(at);
                         seen = hash_rgb(seen, rgb);
-                        acc.add_model(v, rgb, ci, self.log_ref[k]);
+                        let cell = PreparedCell {
+                            half_diff: *half_diff,
+                            value: model.eval_half_diff((*f, d), (ti, to), (ci, co), 1.0),
+                            rgb,
+                            cos: [ci, co],
+                            log_ref: self.log_ref[k],
+                        };
+                        visit(&mut acc, &cell);
                     }
                     (seen == hash).then_some(acc)
                 },
             )
-            .collect();
-        Some(in_order(pieces?).metrics(max_theta_deg))
+            .collect()
     }
+}
+
+/// One cell of [`MerlReference::map_cells`].
+pub(crate) struct PreparedCell {
+    /// The node's (theta_h, theta_d).
+    pub half_diff: (f64, f64),
+    /// The model's value.
+    pub value: [f64; 3],
+    /// The measured value (1/sr).
+    pub rgb: [f64; 3],
+    /// cos theta_i, cos theta_o.
+    pub cos: [f64; 2],
+    /// ln(1 + rho cos theta_i) per channel.
+    pub log_ref: [f64; 3],
 }
 
 /// The pieces' sums added in piece order.
@@ -393,8 +444,9 @@ mod tests {
     /// to the bit, for any thread count, on a MERL table with missing cells
     /// and for models of every kind the path takes (separable and
     /// height-correlated masking, an energy-coupled diffuse form, a
-    /// multiple-scattering term, the checked-in 822-parameter fit); it
-    /// declines what it does not cover and a table other than its own.
+    /// multiple-scattering term, the checked-in 822-parameter fit), and so
+    /// is the post-fit energy scale's ratio; it declines what it does not
+    /// cover and a table other than its own.
     #[test]
     fn prepared_measures_are_the_table_measures_to_the_bit() {
         let brdf = GgxLambert {
@@ -441,6 +493,17 @@ mod tests {
                     let got = pool.install(|| reference.compare(&table, max_theta, model));
                     let got = got.unwrap_or_else(|| panic!("{label}: declined"));
                     assert_eq!(bits(&got), bits(&want), "{label}, {max_theta}, {threads}");
+                    // The post-fit energy scale's ratio from the same reference.
+                    use crate::energy::scale::{energy_ratio, energy_ratio_prepared};
+                    let rule = crate::energy::scale::DEFAULT_RULE;
+                    let want = energy_ratio(&table, max_theta, &rule, model).unwrap();
+                    let got = pool.install(|| {
+                        energy_ratio_prepared(&reference, &table, max_theta, &rule, model)
+                    });
+                    assert_eq!(
+                        got.map(|k| k.map(f64::to_bits)),
+                        Some(want.map(f64::to_bits))
+                    );
                 }
             }
         }

@@ -14,6 +14,7 @@
 //! (with them, an albedo ratio costs cc_amber_citrine 1 dB). Measured
 //! choice of the constants: BENCHMARKS.md, "post-fit energy scales".
 
+use crate::metrics::MerlReference;
 use crate::model::Model;
 use npf_data_loaders::merl::MerlTable;
 
@@ -69,6 +70,50 @@ pub fn energy_ratio(
             }
         },
     );
+    Some(ratio(pieces))
+}
+
+/// [`energy_ratio`] from the error measures' prepared reference of
+/// `table` ([`MerlReference`]): the same cells, pieces and arithmetic, so
+/// the same bits, without the cell walk (the weight's sines and cosines
+/// once per (theta_h, theta_d) row). `None` where the reference does not
+/// apply (see [`MerlReference::compare`]).
+pub fn energy_ratio_prepared(
+    reference: &MerlReference,
+    table: &MerlTable,
+    max_theta_deg: f64,
+    rule: &EnergyScaleRule,
+    model: &Model,
+) -> Option<[f64; 3]> {
+    let min_h = rule.from_theta_h_deg.to_radians();
+    let pieces = reference.map_cells(
+        table,
+        max_theta_deg,
+        model,
+        // The sums, and the row's angles and weight last computed.
+        |_| ([0.0f64; 3], [0.0f64; 3], (f64::NAN, f64::NAN), 0.0),
+        |(m, f, row, j), cell| {
+            let (theta_h, theta_d) = cell.half_diff;
+            if theta_h < min_h {
+                return;
+            }
+            if *row != cell.half_diff {
+                *row = cell.half_diff;
+                *j = theta_d.cos() * theta_d.sin() * theta_h.sin() * theta_h.sqrt();
+            }
+            let w = *j * cell.cos[0] * cell.cos[1];
+            for c in 0..3 {
+                m[c] += w * cell.rgb[c];
+                f[c] += w * cell.value[c];
+            }
+        },
+    )?;
+    Some(ratio(pieces.into_iter().map(|(m, f, _, _)| (m, f))))
+}
+
+/// The ratios of the pieces' sums added in piece order (1 for a channel
+/// the model leaves black).
+fn ratio(pieces: impl IntoIterator<Item = ([f64; 3], [f64; 3])>) -> [f64; 3] {
     let (mut m, mut f) = ([0.0f64; 3], [0.0f64; 3]);
     for (pm, pf) in pieces {
         for c in 0..3 {
@@ -76,14 +121,14 @@ pub fn energy_ratio(
             f[c] += pf[c];
         }
     }
-    Some(std::array::from_fn(|c| {
+    std::array::from_fn(|c| {
         let k = m[c] / f[c];
         if f[c] > 0.0 && k.is_finite() && k > 0.0 {
             k
         } else {
             1.0
         }
-    }))
+    })
 }
 
 /// Whether `rule` applies `k` (some channel off by more than the dead zone).
