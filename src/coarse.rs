@@ -13,6 +13,7 @@
 
 use crate::model::Layout;
 use crate::samples::{FitSet, GUse, SampleData, SampleError, SampleOptions, SampleSource};
+use crate::solver::duo::Duo;
 use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, Observer, SolverError};
 use npf_data_loaders::MeasuredSamples;
 
@@ -171,14 +172,27 @@ pub fn fit<'a>(
     } else {
         (opts, GUse::Updated)
     };
+    // The levels' partner: the build's thread once the build is done.
+    let duo = Duo::new();
     let (set, coarse) = rayon::join(
         || {
             let set = FitSet::build_from(&samples, layout, so, g_use);
-            (set, t0.elapsed().as_secs_f64())
+            let built = t0.elapsed().as_secs_f64();
+            duo.serve();
+            (set, built)
         },
-        || levels_fit(&samples, (layout, so), schedule, opts, start),
+        || duo.lead(|| levels_fit(&samples, (layout, so), schedule, opts, start, &duo)),
     );
     drop(samples);
+    if crate::phases::enabled() {
+        let (ran, back, left) = duo.handed_off();
+        let left = if left {
+            " (left early: busy machine)"
+        } else {
+            ""
+        };
+        eprintln!("npf timing: coarse partner ran {ran} halves, {back} taken back{left}");
+    }
     let (set, set_seconds) = (set.0?, set.1);
     let (start, levels) = coarse?;
     // The decimated levels' sets and the build's temporaries are freed:
@@ -263,6 +277,7 @@ fn levels_fit(
     schedule: Schedule,
     opts: FitOptions,
     mut start: Factors,
+    duo: &Duo,
 ) -> Result<(Factors, Vec<CoarseLevel>), CoarseError> {
     let mut done = Vec::new();
     let mut level_opts = FitOptions {
@@ -284,7 +299,10 @@ fn levels_fit(
             continue;
         }
         let small = FitSet::build(&kept, layout, so)?;
-        let r = Executor::new(&small, level_opts).start_from(start).run()?;
+        let r = Executor::new(&small, level_opts)
+            .start_from(start)
+            .partner(duo)
+            .run()?;
         print_stages(factor, &r.history);
         done.push(CoarseLevel {
             factor,
