@@ -13,6 +13,7 @@
 
 use crate::model::Layout;
 use crate::samples::{FitSet, GUse, SampleData, SampleError, SampleOptions, SampleSource};
+use crate::solver::duo::Duo;
 use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, Observer, SolverError};
 use npf_data_loaders::MeasuredSamples;
 
@@ -187,15 +188,28 @@ pub fn fit_beside<'a, T: Send>(
     } else {
         (opts, GUse::Updated)
     };
+    // The levels' partner: the build's thread once the build is done.
+    let duo = Duo::new();
     let (set, coarse) = rayon::join(
         || {
             let set = FitSet::build_from(&samples, layout, so, g_use);
             let built = t0.elapsed().as_secs_f64();
-            ((set, built), beside(&samples))
+            let beside = beside(&samples);
+            duo.serve();
+            ((set, built), beside)
         },
-        || levels_fit(&samples, (layout, so), schedule, opts, start),
+        || duo.lead(|| levels_fit(&samples, (layout, so), schedule, opts, start, &duo)),
     );
     drop(samples);
+    if crate::phases::enabled() {
+        let (ran, back, left) = duo.handed_off();
+        let left = if left {
+            " (left early: busy machine)"
+        } else {
+            ""
+        };
+        eprintln!("npf timing: coarse partner ran {ran} halves, {back} taken back{left}");
+    }
     let ((set, set_seconds), beside) = set;
     let set = set?;
     let (start, levels) = coarse?;
@@ -282,6 +296,7 @@ fn levels_fit(
     schedule: Schedule,
     opts: FitOptions,
     mut start: Factors,
+    duo: &Duo,
 ) -> Result<(Factors, Vec<CoarseLevel>), CoarseError> {
     let mut done = Vec::new();
     let mut level_opts = FitOptions {
@@ -303,7 +318,10 @@ fn levels_fit(
             continue;
         }
         let small = FitSet::build(&kept, layout, so)?;
-        let r = Executor::new(&small, level_opts).start_from(start).run()?;
+        let r = Executor::new(&small, level_opts)
+            .start_from(start)
+            .partner(duo)
+            .run()?;
         print_stages(factor, &r.history);
         done.push(CoarseLevel {
             factor,

@@ -137,8 +137,11 @@ fn kept_g_is_the_coarse_levels_g_held_on_the_full_set() {
         ..opts
     };
     let start = init::initial_factors(layout, opts.lobes);
+    // A level splits its G sums in halves (for its partner, `solver::duo`).
+    let duo = npf::solver::duo::Duo::new();
     let level = Executor::new(&small, level_opts)
         .start_from(start)
+        .partner(&duo)
         .run()
         .unwrap();
     let full = FitSet::build(&s, layout, so).unwrap();
@@ -357,4 +360,46 @@ fn coarse_gauss_newton_is_monotone_and_thread_independent() {
     assert_eq!(x.result.factors.d, y.result.factors.d);
     // The full set follows the fit's own options: no joint step there.
     assert!(x.result.history.iter().all(|r| !r.gauss_newton));
+}
+
+/// A decimated level's G halves on the partner (`solver::duo`): a level
+/// whose partner serves gives the same bits as one that runs both halves
+/// itself, keeps every stage monotone, and a level that ends at once (an
+/// error) or is never served does not hang.
+#[test]
+fn a_level_with_its_partner_equals_one_without() {
+    use npf::solver::duo::Duo;
+    let s = samples();
+    let (layout, so) = (Layout::default(), SampleOptions::default());
+    let small = FitSet::build(&decimate(&s, 8), layout, so).unwrap();
+    let opts = FitOptions {
+        max_sweeps: 6,
+        tol: 0.0,
+        trace_stages: true,
+        ..Default::default()
+    };
+    let alone = Duo::new();
+    let a = Executor::new(&small, opts).partner(&alone).run().unwrap();
+    assert_stages_monotone(&a, "level without a partner");
+    // Served from the start: the partner waits for the lead, then serves.
+    let served = Duo::new();
+    let b = served.with_partner(|| Executor::new(&small, opts).partner(&served).run().unwrap());
+    // A partner preempted for long (a busy machine) leaves early.
+    let (ran, back, left) = served.handed_off();
+    eprintln!("partner: {ran} halves run, {back} taken back, left early: {left}");
+    assert!(ran > 0 || left, "the partner ran no half");
+    assert_eq!(a.objective.to_bits(), b.objective.to_bits());
+    assert_eq!(a.factors.g, b.factors.g);
+    assert_eq!(a.factors.d, b.factors.d);
+    assert_eq!(a.factors.f, b.factors.f);
+    // A level that fails at once (a start on another layout) releases its partner.
+    let failing = Duo::new();
+    let other = init::initial_factors(Layout::anisotropic(), 3);
+    let r = failing.with_partner(|| {
+        Executor::new(&small, opts)
+            .start_from(other)
+            .partner(&failing)
+            .run()
+    });
+    assert!(r.is_err());
 }

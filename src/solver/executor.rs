@@ -113,6 +113,7 @@ pub struct Executor<'a> {
     options: FitOptions,
     start: Option<Factors>,
     observers: Vec<&'a mut dyn Observer>,
+    partner: Option<&'a super::duo::Duo>,
 }
 
 struct Recorder {
@@ -142,12 +143,22 @@ impl<'a> Executor<'a> {
             options,
             start: None,
             observers: Vec::new(),
+            partner: None,
         }
     }
 
     /// Start from these factors instead of the default initialisation.
     pub fn start_from(mut self, f: Factors) -> Self {
         self.start = Some(f);
+        self
+    }
+
+    /// A decimated level's run: its G passes split each control point's
+    /// entries in halves, handed to `duo`'s partner while one serves
+    /// (the same sums either way, so the same result for any thread
+    /// count; not the same last bits as a run without it).
+    pub fn partner(mut self, duo: &'a super::duo::Duo) -> Self {
+        self.partner = Some(duo);
         self
     }
 
@@ -221,7 +232,14 @@ impl<'a> Executor<'a> {
             update_f(set, &mut st, &mut f_scratch);
             rec.mark(Stage::F, set, &st);
             for m in 0..lobes {
-                g_passes.push(update_g(set, &mut st, m, opts.g_method, &mut g_work));
+                g_passes.push(update_g(
+                    set,
+                    &mut st,
+                    m,
+                    opts.g_method,
+                    &mut g_work,
+                    self.partner,
+                ));
                 rec.mark(Stage::G(m), set, &st);
                 if let Some(sigma) = opts.smooth_g {
                     let before = st.objective(set);

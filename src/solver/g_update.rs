@@ -15,10 +15,16 @@
 //! Control points cannot be updated in parallel (any two can share a sample
 //! through a (theta_i, theta_o) pair); the sums inside one are parallel.
 
+use super::duo::Duo;
 use super::state::{Cache, State};
 use super::{chunked_sum, GMethod, CHUNK};
 use crate::samples::FitSet;
 use rayon::prelude::*;
+
+/// A point list at least this long is split with the partner of a
+/// decimated level ([`Duo`]); shorter ones cost less than the hand-off
+/// (both halves then run on the caller, with the same sums).
+const HAND_OFF_ENTRIES: usize = 512;
 
 /// What one G pass did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -196,6 +202,7 @@ pub(crate) fn update_g(
     m: usize,
     method: GMethod,
     work: &mut Vec<GWork>,
+    duo: Option<&Duo>,
 ) -> GPassStats {
     let mut stats = GPassStats {
         worst_accepted: f64::NEG_INFINITY,
@@ -219,8 +226,7 @@ pub(crate) fn update_g(
         }
         let range = inc.entries(k);
         let wv = &work[..];
-        let c = chunked_sum(range.len(), |r| {
-            let (lo, hi) = (range.start + r.start, range.start + r.end);
+        let sums = |lo: usize, hi: usize| {
             // Slices of the chunk (no per-entry bounds checks on the lists).
             let (sample, u, v) = (&inc.sample[lo..hi], &inc.u[lo..hi], &inc.v[lo..hi]);
             #[cfg(target_arch = "x86_64")]
@@ -229,7 +235,25 @@ pub(crate) fn update_g(
                 return unsafe { super::avx::cubic_sums(wv, sample, u, v) };
             }
             cubic_sums(wv, sample, u, v)
-        });
+        };
+        let c = match duo {
+            // A decimated level: the list's two halves (split at its
+            // midpoint whichever thread runs them), added first + second.
+            Some(duo) => {
+                let mid = range.start + range.len() / 2;
+                let [a, b] = duo.halves(range.len() >= HAND_OFF_ENTRIES, |h| {
+                    if h == 0 {
+                        sums(range.start, mid)
+                    } else {
+                        sums(mid, range.end)
+                    }
+                });
+                std::array::from_fn(|i| a[i] + b[i])
+            }
+            None => chunked_sum(range.len(), |r| {
+                sums(range.start + r.start, range.start + r.end)
+            }),
+        };
         let x = st.factors.g[m][k];
         let t = match method {
             GMethod::Cubic => best_cubic_step(&c, x),
@@ -264,7 +288,16 @@ pub(crate) fn update_g(
             }
         };
         let chunks = range.len().div_ceil(CHUNK);
-        if chunks <= 1 {
+        if let Some(duo) = duo {
+            let mid = range.start + range.len() / 2;
+            duo.halves(range.len() >= HAND_OFF_ENTRIES, |h| {
+                if h == 0 {
+                    apply(range.start, mid)
+                } else {
+                    apply(mid, range.end)
+                }
+            });
+        } else if chunks <= 1 {
             apply(range.start, range.end);
         } else {
             (0..chunks).into_par_iter().for_each(|ci| {

@@ -78,6 +78,7 @@ impl<'a> Kernels<'a> {
             m,
             self.opts.g_method,
             &mut self.g_work,
+            None,
         );
     }
 

@@ -15,6 +15,7 @@
 
 mod avx;
 pub mod diffuse;
+pub mod duo;
 pub mod executor;
 pub mod g2_update;
 pub mod g_update;
