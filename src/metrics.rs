@@ -358,14 +358,10 @@ impl Sums {
     /// Counts one sample: model value `v`, reference `rgb`, cos theta_i `ci`.
     #[inline(always)]
     fn add(&mut self, v: [f64; 3], rgb: [f64; 3], ci: f64) {
-        for c in 0..3 {
-            let e = (v[c] - rgb[c]) * ci;
-            self.sq_err += e * e;
-            self.sq_ref += (rgb[c] * ci).powi(2);
-            self.sq_log += ((v[c] * ci).ln_1p() - (rgb[c] * ci).ln_1p()).powi(2);
-            self.peak = self.peak.max(rgb[c] * ci);
-        }
-        self.count += 1;
+        // The two parts touch different sums, so splitting them keeps each
+        // sum's values and order (the prepared path adds them apart).
+        self.add_reference(rgb, ci);
+        self.add_model(v, rgb, ci, rgb.map(|x| (x * ci).ln_1p()));
     }
 
     /// [`Sums::add`]'s reference part: sum (rho cos)^2, the peak, the count.
