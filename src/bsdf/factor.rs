@@ -867,9 +867,12 @@ impl NpfBxdf {
         }
         let pdf = zero.lt_select(pdf, pdf, zero);
         let pdf = zero.lt_select(ok, pdf, zero);
-        for c in 0..3 {
-            out.wi[c] = zero.lt_select(drawn, wi[c], V::load(&out.wi[c])).to_array();
-        }
+        let [w0, w1, w2] = wi;
+        out.wi = [
+            zero.lt_select(drawn, w0, V::load(&out.wi[0])).to_array(),
+            zero.lt_select(drawn, w1, V::load(&out.wi[1])).to_array(),
+            zero.lt_select(drawn, w2, V::load(&out.wi[2])).to_array(),
+        ];
         out.pdf = zero.lt_select(drawn, pdf, V::load(&out.pdf)).to_array();
         // Rare: a kept lobe draw whose Jacobian `finish_lobe` would not
         // take (it then calls `pdf_at`), or more lobes than the lanes hold.
