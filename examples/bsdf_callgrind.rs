@@ -7,8 +7,9 @@
 //!     callgrind_annotate --inclusive=yes callgrind.out.* | grep run_
 //!
 //! Each `run_*` makes 1024 calls per repetition (the bench's inputs: the
-//! synthetic three-lobe model, views up to 80 degrees, pairs drawn by the
-//! sampler), so inclusive counts / (1024 x repetitions) are instructions
+//! synthetic three-lobe model, or the model file named by
+//! `NPF_BENCH_MODEL` as in the bench, views up to 80 degrees, pairs drawn
+//! by the sampler), so inclusive counts / (1024 x repetitions) are instructions
 //! per call. `run_eval_batch` and `run_sample_batch` make the same calls
 //! through the batch interface. Prints a checksum of the results.
 
@@ -73,11 +74,25 @@ fn run_sample_batch(b: &NpfBxdf, wo: &Soa, u: &Soa, out: &mut SampleBatch) -> f6
 }
 
 fn main() {
-    let b = NpfBxdf::new(npf::synth::known_factor_model(
-        Layout::default(),
-        &[0.02, 0.15, 0.5],
-    ))
-    .unwrap();
+    // The bench's model: the model file named by NPF_BENCH_MODEL, else the
+    // synthetic three-lobe model.
+    let model = match std::env::var_os("NPF_BENCH_MODEL") {
+        Some(path) => match npf::modelfile::read(std::path::Path::new(&path)) {
+            Ok(m) => m.model,
+            Err(e) => {
+                eprintln!("NPF_BENCH_MODEL: {e}");
+                std::process::exit(2);
+            }
+        },
+        None => npf::synth::known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]),
+    };
+    let b = match NpfBxdf::new(model) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("bsdf_callgrind: {e}");
+            std::process::exit(2);
+        }
+    };
     let bsdf_inputs::Inputs { us, wos, pairs } = bsdf_inputs::inputs(&b);
     let reps: usize = match std::env::args().nth(1).map(|s| s.parse()) {
         None => 20,

@@ -258,9 +258,14 @@ impl NpfBxdf {
     /// (what a binary search finds), from the guide table.
     #[inline]
     fn t_cell(&self, t: f64) -> usize {
-        let n = self.edges.len() - 1;
         let g = self.t_guide.len();
-        let b = floor_index(t.sqrt().sqrt() * g as f64).min(g - 1);
+        self.t_cell_from(floor_index(t.sqrt().sqrt() * g as f64).min(g - 1), t)
+    }
+
+    /// [`NpfBxdf::t_cell`] from its guide entry b (the batch forms b in lanes).
+    #[inline(always)]
+    fn t_cell_from(&self, b: usize, t: f64) -> usize {
+        let n = self.edges.len() - 1;
         let mut i = self.t_guide[b] as usize;
         while i + 1 < n && self.edges[i + 1] <= t {
             i += 1;
@@ -729,13 +734,15 @@ impl NpfBxdf {
     /// [`NpfBxdf::draw`] of four views at once, exactly its results (bit
     /// for bit, tested), lane k of each array for draw k, a lost draw with
     /// pdf 0 and the direction and component `draw` reports: the view
-    /// arccosines and each lobe draw's reflection and Jacobian in four
-    /// lanes `V` (the square roots, the azimuth polynomials, the frame's
-    /// division), the four draws' component choices, table searches and
-    /// density reads one by one (independent, so the core overlaps them).
-    /// Every lane sees the operations of `draw` in its order. The results
-    /// go straight to arrays (no `Drawn` per lane: moving those enums cost
-    /// about 50 instructions a draw).
+    /// arccosines, each lobe draw's reflection and Jacobian and each
+    /// diffuse draw's cosine direction and half vector in four lanes `V`
+    /// (the square roots, the azimuth polynomials, the frame's division),
+    /// the four draws' component choices, table searches and density reads
+    /// one by one (independent, so the core overlaps them), then every
+    /// draw's mixture pdf in the same lanes. Every lane sees the operations
+    /// of `draw` in its order. The results go straight to arrays (no
+    /// `Drawn` per lane: moving those enums cost about 50 instructions a
+    /// draw).
     // No closures around lane operations (see `FlatEval::eval4`).
     #[inline(always)]
     pub(crate) fn draw4<V: Lanes4>(
@@ -764,16 +771,22 @@ impl NpfBxdf {
         }; 4];
         // The t and azimuth cells of each lobe draw (None: no lobe draw).
         let mut cells = [None; 4];
-        // The mixture pdf of the lobe draws in lanes: per lane, the
-        // diffuse share, each lobe's share times its density in the drawn
-        // cell, and that density (a zero adds nothing). Only up to
+        // The mixture pdf in lanes: per lane, the diffuse share, each
+        // lobe's share times its density in the cell of the draw's half
+        // vector, and that density (a zero adds nothing). Only up to
         // SEL_ROW - 1 lobes (every model with a flat evaluator); others
-        // take the per-lane `finish_lobe` below.
+        // take the per-lane `finish_lobe` and `diffuse_draw`.
         let nl = self.model.lobes.len();
         let in_lanes = nl < SEL_ROW;
         let mut p_diffuse = [0.0; 4];
-        let mut lobe = [0.0; 4];
-        let (mut share_d, mut dens) = ([[0.0; 4]; SEL_ROW - 1], [[0.0; 4]; SEL_ROW - 1]);
+        // 1 in the lanes of lobe draws, of diffuse draws made in lanes.
+        let (mut lobe, mut diffuse) = ([0.0; 4], [0.0; 4]);
+        // The diffuse draws' random numbers, `unit` as `cosine_hemisphere`'s.
+        let mut ud = [[0.0; 4]; 2];
+        let mut dens = Dens4 {
+            share_d: [[0.0; 4]; SEL_ROW - 1],
+            d: [[0.0; 4]; SEL_ROW - 1],
+        };
         for k in 0..4 {
             sels[k] = self.selection_row_at(row_at_angle(theta[k]));
             if !(wo[k][2] > 0.0) {
@@ -782,7 +795,13 @@ impl NpfBxdf {
             let Some(c) = self.choose(&sels[k], u_lobe[k]) else {
                 continue;
             };
+            p_diffuse[k] = sels[k].p[0];
             if c == 0 {
+                if in_lanes {
+                    diffuse[k] = 1.0;
+                    (ud[0][k], ud[1][k]) = (unit(u[k][0]), unit(u[k][1]));
+                    continue;
+                }
                 let (wi, pdf) = match self.diffuse_draw(wo[k], &sels[k], u[k]) {
                     Ok((wi, pdf, _)) => (wi, pdf),
                     Err(lost) => (lost.wi, 0.0),
@@ -797,35 +816,23 @@ impl NpfBxdf {
             [sc[k], cc[k]] = azimuth_centre(cell.1);
             (t[k], sign[k], dv[k]) = (tk, s, d);
             lobe[k] = 1.0;
-            p_diffuse[k] = sels[k].p[0];
             if in_lanes {
-                let row = self.density_row(&sels[k], cell);
-                for (m, &dm) in row.iter().enumerate().take(SEL_ROW - 1) {
-                    (share_d[m][k], dens[m][k]) = (sels[k].p[m + 1] * dm, dm);
-                }
+                self.read_densities(&mut dens, k, &sels[k], cell);
             }
         }
         let column = |c: usize| [wo[0][c], wo[1][c], wo[2][c], wo[3][c]];
         let (o0, o1, o2) = (column(0), column(1), column(2));
-        let r = reflection::<V>(
-            [V::load(&o0), V::load(&o1), V::load(&o2)],
+        let wo_l = [V::load(&o0), V::load(&o1), V::load(&o2)];
+        let ex = frame_lanes(wo_l);
+        let r = reflection_in::<V>(
+            wo_l,
+            ex,
             V::load(&t),
             V::load(&sign),
             [V::load(&sc), V::load(&cc)],
             V::load(&dv),
         );
-        // `finish_lobe` in lanes, its operations in its order: the diffuse
-        // part, each lobe's (share x density) x Jacobian where the density
-        // is above 0, then 0 for a lost draw (below the horizon or a pdf
-        // not above 0).
         let (zero, one) = (V::splat(0.0), V::splat(1.0));
-        let (jac, p0) = (r.jac.jac, V::load(&p_diffuse));
-        let mut pdf = zero.lt_select(p0, p0 * r.wi[2] / V::splat(PI), zero);
-        for m in 0..nl.min(SEL_ROW - 1) {
-            let d = V::load(&dens[m]);
-            pdf = pdf + zero.lt_select(d, V::load(&share_d[m]) * jac, zero);
-        }
-        let pdf = zero.lt_select(pdf, pdf, zero);
         let (s_z, wo_s, r2) = (r.jac.s_z, r.jac.wo_s, r.jac.r2);
         let jac_ok = zero.lt_select(
             s_z,
@@ -833,16 +840,43 @@ impl NpfBxdf {
             zero,
         );
         let kept = zero.lt_select(r.wo_h, zero.lt_select(r.wi[2], one, zero), zero);
-        let pdf = zero.lt_select(kept, zero.lt_select(jac_ok, pdf, zero), zero);
-        let is_lobe = V::load(&lobe);
-        for c in 0..3 {
-            out.wi[c] = zero
-                .lt_select(is_lobe, r.wi[c], V::load(&out.wi[c]))
-                .to_array();
+        // Per lane: the draw's wi and Jacobian, 1 where it stands (a lobe
+        // draw kept with a valid Jacobian, a diffuse draw above the
+        // horizon), 1 where there is a draw in lanes at all.
+        let (mut wi, mut jac, mut ok) = (r.wi, r.jac.jac, kept * jac_ok);
+        let mut drawn = V::load(&lobe);
+        if diffuse != [0.0; 4] {
+            let is_diffuse = V::load(&diffuse);
+            let (wd, jd) = self.diffuse_lanes::<V>(wo_l, ex, &diffuse, ud, &sels, &mut dens);
+            for c in 0..3 {
+                wi[c] = zero.lt_select(is_diffuse, wd[c], wi[c]);
+            }
+            jac = zero.lt_select(is_diffuse, jd, jac);
+            ok = zero.lt_select(is_diffuse, zero.lt_select(wd[2], one, zero), ok);
+            drawn = drawn + is_diffuse;
         }
-        out.pdf = zero.lt_select(is_lobe, pdf, V::load(&out.pdf)).to_array();
+        // `finish_lobe`'s and `pdf_at`'s operations in their order: the
+        // diffuse part, each lobe's (share x density) x Jacobian where the
+        // density is above 0, then 0 for a lost draw (see `ok`) or a pdf
+        // not above 0.
+        let p0 = V::load(&p_diffuse);
+        let mut pdf = zero.lt_select(p0, p0 * wi[2] / V::splat(PI), zero);
+        for m in 0..nl.min(SEL_ROW - 1) {
+            let d = V::load(&dens.d[m]);
+            pdf = pdf + zero.lt_select(d, V::load(&dens.share_d[m]) * jac, zero);
+        }
+        let pdf = zero.lt_select(pdf, pdf, zero);
+        let pdf = zero.lt_select(ok, pdf, zero);
+        let [w0, w1, w2] = wi;
+        out.wi = [
+            zero.lt_select(drawn, w0, V::load(&out.wi[0])).to_array(),
+            zero.lt_select(drawn, w1, V::load(&out.wi[1])).to_array(),
+            zero.lt_select(drawn, w2, V::load(&out.wi[2])).to_array(),
+        ];
+        out.pdf = zero.lt_select(drawn, pdf, V::load(&out.pdf)).to_array();
         // Rare: a kept lobe draw whose Jacobian `finish_lobe` would not
         // take (it then calls `pdf_at`), or more lobes than the lanes hold.
+        let is_lobe = V::load(&lobe);
         let odd = (is_lobe * kept * (one - jac_ok)).to_array();
         if in_lanes && odd == [0.0; 4] {
             return out;
@@ -861,7 +895,7 @@ impl NpfBxdf {
                     s_z: s_z.to_array()[k],
                     wo_s: wo_s.to_array()[k],
                     r2: r2.to_array()[k],
-                    jac: jac.to_array()[k],
+                    jac: r.jac.jac.to_array()[k],
                 },
             };
             out.pdf[k] = match self.finish_lobe(wo[k], &sels[k], m, cell, &r) {
@@ -870,6 +904,85 @@ impl NpfBxdf {
             };
         }
         out
+    }
+
+    /// Lane k's share x density and density of each of the first SEL_ROW
+    /// - 1 lobes in cell (i, j) of its view's tables, into `dens`.
+    #[inline(always)]
+    fn read_densities(&self, dens: &mut Dens4, k: usize, sel: &Sel, cell: (usize, usize)) {
+        let row = self.density_row(sel, cell);
+        for (m, &dm) in row.iter().enumerate().take(SEL_ROW - 1) {
+            (dens.share_d[m][k], dens.d[m][k]) = (sel.p[m + 1] * dm, dm);
+        }
+    }
+
+    /// The diffuse draws of `draw4` in lanes (the lanes where `diffuse` is
+    /// 1; `ud` their random numbers in [0, 1]): `cosine_hemisphere`'s
+    /// direction and `pdf_at`'s Jacobian, and, where a lobe could have
+    /// drawn that direction (the Jacobian valid), the densities of the
+    /// cell `pdf_at` finds for its half vector (the t cell from the guide
+    /// table, the azimuth cell by `azimuth_cell`'s compares), into those
+    /// lanes of `dens`. Returns (wi, Jacobian) lanes.
+    #[inline(always)]
+    fn diffuse_lanes<V: Lanes4>(
+        &self,
+        wo: [V; 3],
+        [ex0, ex1]: [V; 2],
+        diffuse: &[f64; 4],
+        ud: [[f64; 4]; 2],
+        sels: &[Sel; 4],
+        dens: &mut Dens4,
+    ) -> ([V; 3], V) {
+        let (sp, cp) = turn_sin_cos_lanes(V::load(&ud[1]));
+        let wi = super::cosine_direction(V::load(&ud[0]), sp, cp);
+        let jp = jacobian_parts(wo, wi);
+        if self.densities.is_empty() {
+            return (wi, jp.jac);
+        }
+        let (zero, one) = (V::splat(0.0), V::splat(1.0));
+        // `JacobianParts::valid`, and a diffuse lane.
+        let (s_z, r2) = (jp.s_z, jp.r2);
+        let n2 = r2 + s_z * s_z;
+        let valid = zero.lt_select(
+            s_z,
+            zero.lt_select(jp.wo_s, r2.lt_select(n2, one, zero), zero),
+            zero,
+        );
+        let valid = (valid * V::load(diffuse)).to_array();
+        if valid == [0.0; 4] {
+            return (wi, jp.jac);
+        }
+        // `half_vector`'s h (x and y) and t; |s|^2 = n2 as its dot forms it.
+        let inv = one / n2.sqrt();
+        let (h0, h1) = ((wi[0] + wo[0]) * inv, (wi[1] + wo[1]) * inv);
+        let th = (r2 / n2).min(one);
+        // `azimuth_cell`: x <= c r is "not c r < x" (all finite where the
+        // Jacobian is valid); y only enters squared, so h1 ex.x - h0 ex.y
+        // serves for h0 (-ex.y) + h1 ex.x (they differ at most in a zero's
+        // sign).
+        let x = h0 * ex0 + h1 * ex1;
+        let y = h1 * ex0 - h0 * ex1;
+        let r = (x * x + y * y).sqrt();
+        let mut count = zero;
+        for c in EDGE_COS {
+            count = count + (V::splat(c) * r).lt_select(x, zero, one);
+        }
+        let j = zero.lt_select(r, count, zero).to_u32();
+        // `t_cell`'s guide entry.
+        let g = self.t_guide.len();
+        let b = (th.sqrt().sqrt() * V::splat(g as f64))
+            .floor_index()
+            .min(V::splat((g - 1) as f64))
+            .to_u32();
+        let th = th.to_array();
+        for k in 0..4 {
+            if valid[k] == 0.0 {
+                continue;
+            }
+            let i = self.t_cell_from(b[k] as usize, th[k]);
+            self.read_densities(dens, k, &sels[k], (i, j[k] as usize));
+        }
+        (wi, jp.jac)
     }
 
     /// A diffuse draw whole (the cosine direction and its mixture pdf), as
@@ -1054,6 +1167,15 @@ pub(crate) struct Drawn4 {
     pub theta_o: [f64; 4],
 }
 
+/// The lobe densities of four draws' cells (lane k of each row for draw
+/// k): per lobe m < SEL_ROW - 1, its share x density and its density (0
+/// in lanes without a lobe part).
+#[derive(Clone, Copy, Debug)]
+struct Dens4 {
+    share_d: [[f64; 4]; SEL_ROW - 1],
+    d: [[f64; 4]; SEL_ROW - 1],
+}
+
 /// What the lobe Jacobian is made of, from s = wi + wo (h's direction,
 /// whose length cancels): `jac = s.z / (4 wo.s)`, the tables' density to
 /// solid angle of wi (`cos theta_h / (4 wo.h)`: one division and no square
@@ -1112,19 +1234,37 @@ struct Reflection<V> {
 /// to wo's azimuth) and its reflection of wo, lane by lane.
 #[inline(always)]
 fn reflection<V: Lanes>(wo: [V; 3], t: V, sign: V, centre: [V; 2], dv: V) -> Reflection<V> {
+    reflection_in(wo, frame_lanes(wo), t, sign, centre, dv)
+}
+
+/// `azimuth_frame`'s ex lane by lane (the same values): the unit vector
+/// along wo's azimuth (ey = (-ex.y, ex.x)), x for a wo at the normal.
+#[inline(always)]
+fn frame_lanes<V: Lanes>(wo: [V; 3]) -> [V; 2] {
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
+    let r2 = wo[0] * wo[0] + wo[1] * wo[1];
+    let inv = one / r2.sqrt();
+    let tiny = V::splat(1e-30);
+    [
+        tiny.lt_select(r2, wo[0] * inv, one),
+        tiny.lt_select(r2, wo[1] * inv, zero),
+    ]
+}
+
+/// [`reflection`] given wo's frame ex (`frame_lanes`).
+#[inline(always)]
+fn reflection_in<V: Lanes>(
+    wo: [V; 3],
+    [ex0, ex1]: [V; 2],
+    t: V,
+    sign: V,
+    centre: [V; 2],
+    dv: V,
+) -> Reflection<V> {
     let (zero, one) = (V::splat(0.0), V::splat(1.0));
     let (sin_h, cos_h) = (t.sqrt(), (one - t).max(zero).sqrt());
     let (sp, cp) = azimuth_sin_cos(centre, dv);
     let (hx, hy) = (sin_h * cp, sign * sin_h * sp);
-    // Unit vectors along wo's azimuth, ex, and ey = (-ex.y, ex.x); x and y
-    // for a wo at the normal.
-    let r2 = wo[0] * wo[0] + wo[1] * wo[1];
-    let inv = one / r2.sqrt();
-    let tiny = V::splat(1e-30);
-    let (ex0, ex1) = (
-        tiny.lt_select(r2, wo[0] * inv, one),
-        tiny.lt_select(r2, wo[1] * inv, zero),
-    );
     // hx ex + hy ey (hy (-ex.y) added is hy ex.y subtracted, exactly).
     let h = [hx * ex0 - hy * ex1, hx * ex1 + hy * ex0, cos_h];
     let wo_h = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
@@ -1207,19 +1347,20 @@ fn relative_azimuth(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> f64 {
     y.abs().atan2(x)
 }
 
+/// The cosines of the inner azimuth cell edges, cos(k pi / 8), k = 1..7.
+const EDGE_COS: [f64; PHI_CELLS - 1] = {
+    const _: () = assert!(PHI_CELLS == 8, "EDGE_COS holds the edges of 8 cells");
+    let c1 = 0.923_879_532_511_286_7;
+    let c2 = std::f64::consts::FRAC_1_SQRT_2;
+    let c3 = 0.382_683_432_365_089_8;
+    [c1, c2, c3, 0.0, -c3, -c2, -c1]
+};
+
 /// The azimuth cell of a half vector, `floor(|phi_h - phi_o| / pi *
 /// PHI_CELLS)`, by comparing cos(phi) with the cell edges' cosines (no
 /// atan2): phi >= k pi / PHI_CELLS iff x <= cos(k pi / PHI_CELLS) r.
 #[inline]
 fn azimuth_cell(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> usize {
-    const _: () = assert!(PHI_CELLS == 8, "EDGE_COS holds the edges of 8 cells");
-    const EDGE_COS: [f64; PHI_CELLS - 1] = {
-        // cos(k pi / 8), k = 1..7.
-        let c1 = 0.923_879_532_511_286_7;
-        let c2 = std::f64::consts::FRAC_1_SQRT_2;
-        let c3 = 0.382_683_432_365_089_8;
-        [c1, c2, c3, 0.0, -c3, -c2, -c1]
-    };
     let x = h[0] * ex[0] + h[1] * ex[1];
     let y = h[0] * ey[0] + h[1] * ey[1];
     let r = (x * x + y * y).sqrt();
@@ -1229,25 +1370,75 @@ fn azimuth_cell(h: Vec3, ex: [f64; 2], ey: [f64; 2]) -> usize {
     EDGE_COS.iter().filter(|&&c| x <= c * r).count()
 }
 
+/// (sin, cos) of the centres (j + 1/2) pi / 8 of the eight cells of pi / 8
+/// in [0, pi].
+const CENTRE: [[f64; 2]; 8] = {
+    let (s1, c1) = (0.195_090_322_016_128_26, 0.980_785_280_403_230_4);
+    let (s3, c3) = (0.555_570_233_019_602_2, 0.831_469_612_302_545_2);
+    [
+        [s1, c1],
+        [s3, c3],
+        [c3, s3],
+        [c1, s1],
+        [c1, -s1],
+        [c3, -s3],
+        [s3, -c3],
+        [s1, -c1],
+    ]
+};
+
 /// (sin, cos) of the centre (j + 1/2) pi / PHI_CELLS of azimuth cell j.
 #[inline(always)]
 fn azimuth_centre(j: usize) -> [f64; 2] {
     const _: () = assert!(PHI_CELLS == 8, "CENTRE holds the centres of 8 cells");
-    const CENTRE: [[f64; 2]; PHI_CELLS] = {
-        let (s1, c1) = (0.195_090_322_016_128_26, 0.980_785_280_403_230_4);
-        let (s3, c3) = (0.555_570_233_019_602_2, 0.831_469_612_302_545_2);
-        [
-            [s1, c1],
-            [s3, c3],
-            [c3, s3],
-            [c1, s1],
-            [c1, -s1],
-            [c3, -s3],
-            [s3, -c3],
-            [s1, -c1],
-        ]
-    };
     CENTRE[j.min(PHI_CELLS - 1)]
+}
+
+/// Cells of pi / 8 in a whole turn (`turn_sin_cos`).
+const TURN_CELLS: usize = 16;
+
+/// (sin, cos) of the centres (j + 1/2) pi / 8 of the sixteen cells of a
+/// turn: CENTRE, then CENTRE negated (an angle plus pi, exactly).
+const TURN_CENTRE: [[f64; 2]; TURN_CELLS] = {
+    let mut t = [[0.0; 2]; TURN_CELLS];
+    let mut j = 0;
+    while j < 8 {
+        t[j] = CENTRE[j];
+        t[j + 8] = [-CENTRE[j][0], -CENTRE[j][1]];
+        j += 1;
+    }
+    t
+};
+
+/// (sin, cos) of the angle 2 pi u for u in [0, 1] (the cosine draw's
+/// azimuth): the turn in sixteen cells of pi / 8 (16 u is exact, its
+/// floor the cell j, the rest dv), the cell's centre rotated by
+/// `azimuth_sin_cos`' polynomials. Within 1e-15 of libm's `sin_cos`
+/// (tested), without its branches, and in lanes too
+/// (`turn_sin_cos_lanes`, the same bits).
+#[inline(always)]
+pub(super) fn turn_sin_cos(u: f64) -> (f64, f64) {
+    let x = u * TURN_CELLS as f64;
+    let j = floor_index(x).min(TURN_CELLS - 1);
+    azimuth_sin_cos::<f64>(TURN_CENTRE[j], x - j as f64)
+}
+
+/// [`turn_sin_cos`] of four u in [0, 1] at once (the same operations).
+#[inline(always)]
+fn turn_sin_cos_lanes<V: Lanes4>(u: V) -> (V, V) {
+    let x = u * V::splat(TURN_CELLS as f64);
+    let j = x.floor_index().min(V::splat((TURN_CELLS - 1) as f64));
+    let js = j.to_u32();
+    // Written out: `[..].map(..)` compiles to out-of-line calls in lanes code.
+    let c = [
+        TURN_CENTRE[(js[0] as usize).min(TURN_CELLS - 1)],
+        TURN_CENTRE[(js[1] as usize).min(TURN_CELLS - 1)],
+        TURN_CENTRE[(js[2] as usize).min(TURN_CELLS - 1)],
+        TURN_CENTRE[(js[3] as usize).min(TURN_CELLS - 1)],
+    ];
+    let sc = V::load(&[c[0][0], c[1][0], c[2][0], c[3][0]]);
+    let cc = V::load(&[c[0][1], c[1][1], c[2][1], c[3][1]]);
+    azimuth_sin_cos([sc, cc], x - j)
 }
 
 /// (sin, cos) of the azimuth (j + dv) pi / PHI_CELLS, dv in [0, 1], lane
@@ -1571,6 +1762,52 @@ mod tests {
         assert!(worst <= 1e-15, "worst {worst:e}");
     }
 
+    /// turn_sin_cos_lanes in lane type V: turn_sin_cos's bits, lane by lane.
+    fn check_turn_lanes<V: Lanes4>(us: &[f64]) {
+        for q in us.chunks_exact(4) {
+            let q = [q[0], q[1], q[2], q[3]];
+            let (s, c) = turn_sin_cos_lanes(V::load(&q));
+            let (s, c) = (s.to_array(), c.to_array());
+            for k in 0..4 {
+                let (s1, c1) = turn_sin_cos(q[k]);
+                assert_eq!(
+                    (s[k].to_bits(), c[k].to_bits()),
+                    (s1.to_bits(), c1.to_bits())
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn turn_sin_cos_is_the_library_s() {
+        // Every 1/16 cell edge (k a multiple of n / 16), both ends and
+        // points between.
+        let n = 160_000;
+        let us: Vec<f64> = (0..=n)
+            .flat_map(|k| [k as f64 / n as f64, (k as f64 + 0.37) / n as f64])
+            .filter(|&u| u <= 1.0)
+            .chain([1.0 - 1e-17, 1.0 - f64::EPSILON, 1e-300, 0.0])
+            .collect();
+        let mut worst = 0.0f64;
+        for &u in &us {
+            let (s, c) = turn_sin_cos(u);
+            let (s0, c0) = (2.0 * PI * u).sin_cos();
+            worst = worst.max((s - s0).abs()).max((c - c0).abs());
+        }
+        // A few ulps of 1 (libm's argument 2 pi u is itself rounded).
+        assert!(worst <= 1e-15, "worst {worst:e}");
+        check_turn_lanes::<super::super::lanes::F64x2x2>(&us);
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn avx(us: &[f64]) {
+                check_turn_lanes::<super::super::lanes::avx::F64x4>(us)
+            }
+            // SAFETY: AVX2 was detected.
+            unsafe { avx(&us) };
+        }
+    }
+
     /// draw4 in lane type V against draw, bit for bit, on views that
     /// include the normal, grazing and invalid ones and random numbers
     /// at and outside [0, 1].
@@ -1624,11 +1861,18 @@ mod tests {
     fn four_draws_at_once_equal_one_at_a_time_bit_for_bit() {
         let mut with_diffuse = known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]);
         with_diffuse.diffuse = [0.2, 0.1, 0.05];
+        // Mostly diffuse (a matte fabric): most groups of four hold
+        // several diffuse draws, many all four.
+        let mut matte = known_factor_model(Layout::default(), &[0.5]);
+        matte.diffuse = [0.8, 0.7, 0.6];
+        let mut max_diffuse = 0.0f64;
         for model in [
             with_diffuse,
             known_factor_model(Layout::isotropic(30), &[0.3]),
+            matte,
         ] {
             let b = NpfBxdf::new(model).unwrap();
+            max_diffuse = max_diffuse.max(b.selection_probabilities([0.0, 0.0, 1.0])[0]);
             // Not vacuous: most draws carry light.
             assert!(check_draw4::<super::super::lanes::F64x2x2>(&b) > 10_000);
             #[cfg(target_arch = "x86_64")]
@@ -1641,6 +1885,8 @@ mod tests {
                 assert!(unsafe { avx(&b) } > 10_000);
             }
         }
+        // The matte model draws mostly diffuse.
+        assert!(max_diffuse > 0.5, "{max_diffuse}");
     }
 
     #[test]

@@ -179,12 +179,22 @@ pub(crate) fn unit(u: f64) -> f64 {
     }
 }
 
-/// Cosine-weighted hemisphere (Malley's method with a uniform disk).
+/// Cosine-weighted hemisphere (Malley's method with a uniform disk). The
+/// azimuth 2 pi u[1]'s sine and cosine come from polynomials (within
+/// 1e-15 of libm's `sin_cos`, tested), the same arithmetic as the batch
+/// draw's lanes, so both give the same bits.
 #[inline]
 pub fn cosine_hemisphere(u: [f64; 2]) -> Vec3 {
-    let r = unit(u[0]).sqrt();
-    let (sp, cp) = (2.0 * PI * unit(u[1])).sin_cos();
-    let z = (1.0 - unit(u[0])).max(0.0).sqrt();
+    let (sp, cp) = factor::turn_sin_cos(unit(u[1]));
+    cosine_direction(unit(u[0]), sp, cp)
+}
+
+/// The cosine-weighted direction of u0 in [0, 1] (the disk radius's
+/// square) at the azimuth of sine `sp` and cosine `cp`, lane by lane.
+#[inline(always)]
+fn cosine_direction<V: lanes::Lanes>(u0: V, sp: V, cp: V) -> [V; 3] {
+    let r = u0.sqrt();
+    let z = (V::splat(1.0) - u0).max(V::splat(0.0)).sqrt();
     [r * cp, r * sp, z]
 }
 
