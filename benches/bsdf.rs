@@ -20,21 +20,14 @@
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use npf::bsdf::{Directions, NpfBxdf, SampleBatch};
-use npf::model::{Layout, Model};
+use npf::model::Model;
 
 #[path = "common/bsdf_inputs.rs"]
 mod bsdf_inputs;
 use bsdf_inputs::BATCH;
 
 fn model() -> Model {
-    match std::env::var_os("NPF_BENCH_MODEL") {
-        Some(path) => {
-            npf::modelfile::read(std::path::Path::new(&path))
-                .unwrap_or_else(|e| panic!("NPF_BENCH_MODEL: {e}"))
-                .model
-        }
-        None => npf::synth::known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]),
-    }
+    bsdf_inputs::model().unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// CPU time of the calling thread in nanoseconds (wall time when asked, or

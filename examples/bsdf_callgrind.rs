@@ -14,7 +14,6 @@
 //! through the batch interface. Prints a checksum of the results.
 
 use npf::bsdf::{Directions, NpfBxdf, SampleBatch};
-use npf::model::Layout;
 
 #[path = "../benches/common/bsdf_inputs.rs"]
 mod bsdf_inputs;
@@ -74,17 +73,13 @@ fn run_sample_batch(b: &NpfBxdf, wo: &Soa, u: &Soa, out: &mut SampleBatch) -> f6
 }
 
 fn main() {
-    // The bench's model: the model file named by NPF_BENCH_MODEL, else the
-    // synthetic three-lobe model.
-    let model = match std::env::var_os("NPF_BENCH_MODEL") {
-        Some(path) => match npf::modelfile::read(std::path::Path::new(&path)) {
-            Ok(m) => m.model,
-            Err(e) => {
-                eprintln!("NPF_BENCH_MODEL: {e}");
-                std::process::exit(2);
-            }
-        },
-        None => npf::synth::known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]),
+    // The bench's model (NPF_BENCH_MODEL or the synthetic one).
+    let model = match bsdf_inputs::model() {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
     };
     let b = match NpfBxdf::new(model) {
         Ok(b) => b,

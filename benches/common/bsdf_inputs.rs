@@ -2,8 +2,23 @@
 //! `examples/bsdf_callgrind.rs` so both time and count the same calls.
 
 use npf::bsdf::NpfBxdf;
+use npf::model::{Layout, Model};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
+
+/// The benched model: the model file named by `NPF_BENCH_MODEL` (e.g. a
+/// fit kept outside the repository), else the synthetic three-lobe model.
+pub fn model() -> Result<Model, String> {
+    match std::env::var_os("NPF_BENCH_MODEL") {
+        Some(path) => npf::modelfile::read(std::path::Path::new(&path))
+            .map(|f| f.model)
+            .map_err(|e| format!("NPF_BENCH_MODEL: {e}")),
+        None => Ok(npf::synth::known_factor_model(
+            Layout::default(),
+            &[0.02, 0.15, 0.5],
+        )),
+    }
+}
 
 /// Calls per batch.
 pub const BATCH: usize = 1024;
