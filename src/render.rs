@@ -20,7 +20,9 @@
 //! sphere of directions: `n_theta` strata uniform in w_y (equal area) times
 //! `2 n_theta` in azimuth, each of solid angle 4 pi / (2 n_theta^2). Only
 //! directions above the pixel's tangent plane count. The quadrature is the
-//! same for the table and the model, and has no randomness.
+//! same for the table and the model, and has no randomness. The grid reads
+//! a sharp peak at isolated points; [`EnvQuadrature::HalfVector`]
+//! integrates per pixel over half vectors instead, and converges on it.
 //!
 //! Display values: P = srgb(L / (1 + L)) per channel (Reinhard, then the
 //! sRGB transfer curve), in [0, 1). Rendering PSNR = 10 log10(1 / MSE) over
@@ -36,8 +38,12 @@ use rayon::prelude::*;
 pub struct RenderOptions {
     /// Image width and height in pixels.
     pub res: usize,
-    /// Environment quadrature: strata in w_y (azimuth gets twice as many).
+    /// Environment quadrature: strata in w_y (azimuth gets twice as many),
+    /// or with [`EnvQuadrature::HalfVector`] strata in sqrt(theta_h)
+    /// (the same: twice as many in azimuth).
     pub n_theta: usize,
+    /// How the environment integral is sampled.
+    pub env: EnvQuadrature,
 }
 
 impl Default for RenderOptions {
@@ -45,8 +51,27 @@ impl Default for RenderOptions {
         RenderOptions {
             res: 128,
             n_theta: 24,
+            env: EnvQuadrature::Sphere,
         }
     }
+}
+
+/// The environment integral's quadrature.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EnvQuadrature {
+    /// One midpoint grid over the sphere of directions, the same for every
+    /// pixel. Cheap, but a peak narrower than its spacing (about 7 deg at
+    /// 24 strata) is read at isolated points: the highlight of a sharp
+    /// material is a pattern of dots, and the score depends on the peak's
+    /// value at those points rather than on the light it reflects.
+    #[default]
+    Sphere,
+    /// Per pixel, a midpoint grid over half vectors around the normal,
+    /// uniform in sqrt(theta_h / 90 deg) as MERL's table is, with twice
+    /// as many azimuth strata; each reflects the view into one
+    /// incident direction with Jacobian 4 (wo . h). Dense where a specular
+    /// peak is, so sharp highlights converge (the environment is smooth).
+    HalfVector,
 }
 
 /// A linear-radiance RGB image; `mask` marks the sphere's pixels.
@@ -108,6 +133,44 @@ pub fn quadrature(n_theta: usize) -> Vec<(Vec3, [f64; 3])> {
     out
 }
 
+/// Half vectors of the local hemisphere with their solid angles d omega_h:
+/// `n` strata uniform in u = sqrt(theta_h / 90 deg), `2 n` in azimuth, each
+/// read at its midpoint and weighted by its exact solid angle. At n = 90 the
+/// strata are MERL's theta_h cells, so a table (constant across a cell) is
+/// integrated exactly in theta_h. A fitted model's peak varies inside the
+/// first cells (under 1.1 deg), so those strata are split eight ways.
+fn half_vectors(n: usize) -> Vec<(Vec3, f64)> {
+    const SPLIT: usize = 8;
+    let n = n.max(1);
+    let m = 2 * n;
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    let d_phi = 2.0 * std::f64::consts::PI / m as f64;
+    let theta_at = |u: f64| half_pi * u * u;
+    let mut rows = Vec::new();
+    for a in 0..n {
+        let split = if 9 * a < n { SPLIT } else { 1 };
+        for k in 0..split {
+            let u = |x: f64| (a as f64 + (k as f64 + x) / split as f64) / n as f64;
+            rows.push((theta_at(u(0.0)), theta_at(u(0.5)), theta_at(u(1.0))));
+        }
+    }
+    let mut out = Vec::with_capacity(rows.len() * m);
+    for (lo, theta, hi) in rows {
+        // cos lo - cos hi without cancellation for tiny strata
+        let d_omega = 2.0 * (0.5 * (hi + lo)).sin() * (0.5 * (hi - lo)).sin() * d_phi;
+        for k in 0..m {
+            let phi = d_phi * (k as f64 + 0.5);
+            let h = [
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ];
+            out.push((h, d_omega));
+        }
+    }
+    out
+}
+
 fn cross(a: Vec3, b: Vec3) -> Vec3 {
     [
         a[1] * b[2] - a[2] * b[1],
@@ -120,7 +183,14 @@ fn cross(a: Vec3, b: Vec3) -> Vec3 {
 /// normal +z, as `bsdf.eval(wo, wi)`).
 pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
     let res = opts.res.max(1);
-    let quad = quadrature(opts.n_theta);
+    let quad = match opts.env {
+        EnvQuadrature::Sphere => quadrature(opts.n_theta),
+        EnvQuadrature::HalfVector => Vec::new(),
+    };
+    let half = match opts.env {
+        EnvQuadrature::Sphere => Vec::new(),
+        EnvQuadrature::HalfVector => half_vectors(opts.n_theta),
+    };
     let lights = lights();
     let px: Vec<([f64; 3], bool)> = (0..res * res)
         .into_par_iter()
@@ -158,8 +228,36 @@ pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
             for (w, e) in &lights {
                 add(*w, e);
             }
-            for (w, e) in &quad {
-                add(*w, e);
+            match opts.env {
+                EnvQuadrature::Sphere => {
+                    for (w, e) in &quad {
+                        add(*w, e);
+                    }
+                }
+                EnvQuadrature::HalfVector => {
+                    for (h, dh) in &half {
+                        let c = dot(wo, *h);
+                        if c <= 0.0 {
+                            continue;
+                        }
+                        let wi = [
+                            2.0 * c * h[0] - wo[0],
+                            2.0 * c * h[1] - wo[1],
+                            2.0 * c * h[2] - wo[2],
+                        ];
+                        if wi[2] <= 0.0 {
+                            continue;
+                        }
+                        // back to the world frame: wi = x t + y b + z n
+                        let world =
+                            std::array::from_fn(|k| wi[0] * t[k] + wi[1] * b[k] + wi[2] * n[k]);
+                        let e = environment(world).map(|v| v * 4.0 * c * dh);
+                        let v = bsdf.eval(wo, wi);
+                        for ch in 0..3 {
+                            l[ch] += v[ch] * e[ch] * wi[2];
+                        }
+                    }
+                }
             }
             (l, true)
         })

@@ -181,6 +181,7 @@ fn isotropic_data_gives_phi_flat_factors_and_renders_like_the_isotropic_fit() {
     let opts = RenderOptions {
         res: 64,
         n_theta: 16,
+        env: Default::default(),
     };
     let a = render(opts, &NpfBxdf::new(aniso).unwrap());
     let b = render(opts, &NpfBxdf::new(iso).unwrap());

@@ -29,6 +29,7 @@ const BRDF: GgxLambert = GgxLambert {
 const SMALL: RenderOptions = RenderOptions {
     res: 24,
     n_theta: 8,
+    env: npf::render::EnvQuadrature::Sphere,
 };
 
 /// `compare_model_table` equals `compare_model` on the table's samples to
@@ -176,6 +177,7 @@ fn render_quadrature_converges() {
             RenderOptions {
                 res: 20,
                 n_theta: n,
+                env: Default::default(),
             },
             &f,
         )
@@ -196,6 +198,46 @@ fn render_quadrature_converges() {
     assert!(p > 40.0, "{p}");
     // Deterministic: the same settings give the same image, bit for bit.
     assert_eq!(img(24), a);
+}
+
+/// A sharp peak (alpha 0.02, about 1 deg wide) is read by the default
+/// sphere grid (7 deg spacing) at isolated points, so its image changes
+/// with the grid; the per-pixel half-vector grid converges on it. Both
+/// grids agree where both converge (the glossy sphere).
+#[test]
+fn half_vector_quadrature_converges_on_a_sharp_peak() {
+    use npf::render::{EnvQuadrature, Image};
+    let img = |brdf: &GgxLambert, env, n| {
+        render(
+            RenderOptions {
+                res: 20,
+                n_theta: n,
+                env,
+            },
+            &brdf.params(),
+        )
+    };
+    let sharp = GgxLambert {
+        alpha: 0.02,
+        ..BRDF
+    };
+    let (sphere, half) = (EnvQuadrature::Sphere, EnvQuadrature::HalfVector);
+    let p = |a: &Image, b: &Image| psnr(a, b).unwrap();
+    let sphere_24_96 = p(&img(&sharp, sphere, 96), &img(&sharp, sphere, 24));
+    let half_48_96 = p(&img(&sharp, half, 96), &img(&sharp, half, 48));
+    let half_96 = img(&sharp, half, 96);
+    let half_vs_sphere_96 = p(&half_96, &img(&sharp, sphere, 96));
+    let glossy = p(&img(&BRDF, sphere, 96), &img(&BRDF, half, 48));
+    eprintln!(
+        "sharp peak: sphere 24 vs 96 {sphere_24_96:.1} dB, half-vector 48 vs 96 {half_48_96:.1} dB, \
+         half-vector 96 vs sphere 96 {half_vs_sphere_96:.1} dB; glossy: sphere 96 vs half-vector 48 {glossy:.1} dB"
+    );
+    assert!(half_48_96 > 60.0, "{half_48_96}");
+    assert!(sphere_24_96 < 35.0, "{sphere_24_96}");
+    assert!(half_vs_sphere_96 < half_48_96 - 10.0, "{half_vs_sphere_96}");
+    assert!(glossy > 60.0, "{glossy}");
+    // Deterministic, as the sphere grid is.
+    assert_eq!(img(&sharp, half, 48), img(&sharp, half, 48));
 }
 
 fn thinned(table: &MerlTable, keep: usize) -> MeasuredSamples {
@@ -344,10 +386,61 @@ fn baselines_fit_reconstruct_and_compare_through_the_cli() {
     ]));
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["metrics"]["cos_rmse"], 0.0);
-    // Bad input: a message, no panic.
-    let bad = npf(&["compare", s(&input), s(&dir.path().join("missing.json"))]);
-    assert!(!bad.status.success());
-    assert!(!String::from_utf8_lossy(&bad.stderr).contains("panicked"));
+    // Several tests against one reference (rendered once, here on the
+    // half-vector grid): an array, each entry what a run of its own gives.
+    let (ggx, ig) = (
+        dir.path().join("ggx.json"),
+        dir.path().join("independent-g.json"),
+    );
+    let grid = [
+        "--res",
+        "8",
+        "--n-theta",
+        "9",
+        "--env",
+        "half-vector",
+        "--json",
+    ];
+    let both = ok(&npf(&[
+        &["compare", s(&input), s(&ggx), s(&ig)][..],
+        &grid[..],
+    ]
+    .concat()));
+    let both: serde_json::Value = serde_json::from_str(&both).unwrap();
+    assert_eq!(both.as_array().map(Vec::len), Some(2), "{both}");
+    for (k, m) in [&ggx, &ig].into_iter().enumerate() {
+        let one = ok(&npf(
+            &[&["compare", s(&input), s(m)][..], &grid[..]].concat()
+        ));
+        let one: serde_json::Value = serde_json::from_str(&one).unwrap();
+        assert_eq!(both[k], one, "{}", m.display());
+        assert!(one["render_psnr_db"].as_f64().unwrap() > 20.0, "{one}");
+    }
+    // One test.png: --images takes one test.
+    let o = npf(&[
+        "compare",
+        s(&input),
+        s(&ggx),
+        s(&ig),
+        "--images",
+        s(dir.path()),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--images takes one test"));
+    // Bad input: a message naming the file, no panic, before any render.
+    let missing = dir.path().join("missing.json");
+    for args in [
+        vec![s(&input), s(&missing)],
+        vec![s(&input), s(&ggx), s(&missing)],
+    ] {
+        let bad = npf(&[&["compare"][..], &args[..]].concat());
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(!bad.status.success());
+        assert!(
+            err.contains("missing.json") && !err.contains("panicked"),
+            "{err}"
+        );
+    }
 }
 
 #[test]

@@ -694,3 +694,32 @@ mod parsers {
         }
     }
 }
+
+/// A reader that stops early (`npf sample ... | head`) ends npf quietly:
+/// no panic message, killed by SIGPIPE as any Unix filter would be.
+#[cfg(unix)]
+#[test]
+fn a_reader_that_stops_early_ends_npf_without_a_panic() {
+    use std::io::Read;
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    let m = write_model(dir.path(), "m.json");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_npf"))
+        .args(["sample", s(&m), "--theta-o", "30", "--n", "10000000"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run npf");
+    let mut head = [0u8; 64];
+    child.stdout.take().unwrap().read_exact(&mut head).unwrap();
+    // The pipe's read end is dropped here: npf's next write finds no reader.
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(o.status.signal(), Some(13), "{:?}, {err}", o.status);
+    assert!(
+        String::from_utf8_lossy(&head).starts_with("wi_x"),
+        "{head:?}"
+    );
+}

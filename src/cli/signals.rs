@@ -1,4 +1,5 @@
-//! SIGINT, SIGTERM and SIGHUP: remove the unfinished outputs, then exit.
+//! SIGINT, SIGTERM and SIGHUP: remove the unfinished outputs, then exit;
+//! SIGPIPE: end quietly when the reader of standard output has gone.
 //!
 //! Outputs are written to registered temporary files and renamed into place
 //! ([`npf_data_loaders::atomic`]); a process killed mid-write would leave
@@ -13,6 +14,10 @@ pub fn install() {
     // SAFETY: plain libc calls on a sigset_t we own; the mask is set before
     // any other thread exists, and sigwait only reads the set.
     unsafe {
+        // A reader that stops early (`npf sample ... | head`) ends npf
+        // quietly, as it does any Unix filter; ignored (Rust's default),
+        // the next print would panic on the closed pipe.
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
         let mut set: libc::sigset_t = std::mem::zeroed();
         libc::sigemptyset(&mut set);
         for s in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {

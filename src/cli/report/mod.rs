@@ -172,6 +172,7 @@ pub fn run(args: ReportArgs) -> CliResult {
     let render_opts = RenderOptions {
         res: args.res,
         n_theta: args.n_theta,
+        env: Default::default(),
     };
     let threads = if args.jobs == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
