@@ -259,6 +259,64 @@ impl MerlTable {
         ))
     }
 
+    /// The value at (theta_h, theta_d, phi_d) interpolated between the
+    /// lower-edge nodes ([`MerlTable::node_angles`]): multilinear in the
+    /// index coordinates (sqrt(theta_h) scaled, theta_d, phi_d), phi_d
+    /// periodic with period pi (the fold [`MerlTable::lookup`] applies),
+    /// the other two held at their last node. The reading that treats each
+    /// cell as the BRDF *at* its node (the convention the tables are made
+    /// with); `lookup` holds a node's value across its whole bin instead,
+    /// which raises a sharp lobe's energy. Missing corners are left out and
+    /// the others' weights renormalised; `None` if all are missing or an
+    /// angle is NaN.
+    pub fn lookup_interpolated(&self, theta_h: f64, theta_d: f64, phi_d: f64) -> Option<[f64; 3]> {
+        if theta_h.is_nan() || theta_d.is_nan() || phi_d.is_nan() {
+            return None;
+        }
+        let x_th = if theta_h <= 0.0 {
+            0.0
+        } else {
+            (theta_h / FRAC_PI_2).sqrt() * Self::RES_THETA_H as f64
+        };
+        let x_td = (theta_d / FRAC_PI_2 * Self::RES_THETA_D as f64).max(0.0);
+        let pd = if phi_d < 0.0 { phi_d + PI } else { phi_d };
+        let x_pd = (pd / PI * Self::RES_PHI_D as f64).rem_euclid(Self::RES_PHI_D as f64);
+        // (lower node, upper node, weight of the upper one) on a held axis
+        let held = |x: f64, n: usize| {
+            let last = (n - 1) as f64;
+            if x >= last {
+                (n - 1, n - 1, 0.0)
+            } else {
+                let f = x.floor();
+                (f as usize, f as usize + 1, x - f)
+            }
+        };
+        let (h0, h1, wh) = held(x_th, Self::RES_THETA_H);
+        let (d0, d1, wd) = held(x_td, Self::RES_THETA_D);
+        let f = x_pd.floor();
+        let p0 = (f as usize).min(Self::RES_PHI_D - 1);
+        let (p1, wp) = ((p0 + 1) % Self::RES_PHI_D, x_pd - f);
+        let mut acc = [0.0; 3];
+        let mut total = 0.0;
+        for (ih, a) in [(h0, 1.0 - wh), (h1, wh)] {
+            for (id, b) in [(d0, 1.0 - wd), (d1, wd)] {
+                for (ip, c) in [(p0, 1.0 - wp), (p1, wp)] {
+                    let w = a * b * c;
+                    if w <= 0.0 {
+                        continue;
+                    }
+                    if let Some(v) = self.cell(Self::index(ih, id, ip)) {
+                        total += w;
+                        for k in 0..3 {
+                            acc[k] += w * v[k];
+                        }
+                    }
+                }
+            }
+        }
+        (total > 0.0).then(|| acc.map(|v| v / total))
+    }
+
     /// Number of cells with no negative channel.
     pub fn valid_cells(&self) -> usize {
         let (r, rest) = self.raw.split_at(Self::CELLS);
@@ -810,6 +868,66 @@ mod tests {
         assert_eq!(MerlTable::index(89, 89, 179), MerlTable::CELLS - 1);
         assert_eq!(MerlTable::index(0, 1, 0), 180);
         assert_eq!(MerlTable::index(1, 0, 0), 180 * 90);
+    }
+
+    /// `lookup_interpolated` returns a node's own value at the node, is
+    /// exact for values linear in the index coordinates (sqrt(theta_h),
+    /// theta_d, and phi_d away from the wrap), wraps phi_d with period pi,
+    /// holds the last theta node, and leaves missing corners out.
+    #[test]
+    fn interpolated_lookup_is_exact_at_nodes_and_for_linear_values() {
+        let idx = |th: f64, td: f64, pd: f64| {
+            (
+                (th / FRAC_PI_2).sqrt() * 90.0,
+                td / FRAC_PI_2 * 90.0,
+                pd / PI * 180.0,
+            )
+        };
+        let linear = MerlTable::from_fn(|th, td, pd| {
+            let (a, b, c) = idx(th, td, pd);
+            Some([1.0 + a, 2.0 + 0.5 * b, 3.0 + 0.25 * c])
+        });
+        let close = |x: [f64; 3], y: [f64; 3]| {
+            (0..3).all(|k| (x[k] - y[k]).abs() < 1e-9 * (1.0 + y[k].abs()))
+        };
+        for (i, j, k) in [(0, 0, 0), (3, 40, 17), (45, 89, 179), (89, 10, 90)] {
+            let (th, td, pd) = MerlTable::node_angles(i, j, k);
+            let want = linear.cell(MerlTable::index(i, j, k)).unwrap();
+            let got = linear.lookup_interpolated(th, td, pd).unwrap();
+            assert!(close(got, want), "node {i} {j} {k}: {got:?} {want:?}");
+        }
+        // Between nodes (phi_d below the last node, so no wrap).
+        for (a, b, c) in [(0.3, 0.5, 0.5), (12.25, 33.5, 100.75), (88.9, 88.1, 178.5)] {
+            let th = (a / 90.0f64).powi(2) * FRAC_PI_2;
+            let (td, pd) = (b / 90.0 * FRAC_PI_2, c / 180.0 * PI);
+            let got = linear.lookup_interpolated(th, td, pd).unwrap();
+            assert!(
+                close(got, [1.0 + a, 2.0 + 0.5 * b, 3.0 + 0.25 * c]),
+                "{a} {b} {c}: {got:?}"
+            );
+        }
+        // phi_d wraps: halfway between node 179 and node 0 (= pi).
+        let wrap = linear
+            .lookup_interpolated(0.1, 0.2, (179.5 / 180.0) * PI)
+            .unwrap();
+        assert!((wrap[2] - (3.0 + 0.25 * 89.5)).abs() < 1e-9, "{wrap:?}");
+        // Past the last theta nodes: held.
+        let far = linear
+            .lookup_interpolated(FRAC_PI_2, FRAC_PI_2, 0.0)
+            .unwrap();
+        assert!(close(far, [1.0 + 89.0, 2.0 + 0.5 * 89.0, 3.0]), "{far:?}");
+        // A missing corner is left out: halfway in theta_d towards a missing
+        // node gives the valid node's value; all missing gives None.
+        let holes = MerlTable::from_fn(|_, td, _| (td < 0.5).then_some([1.0, 2.0, 3.0]));
+        let (_, td_last, _) = MerlTable::node_angles(0, 28, 0);
+        let (_, td_next, _) = MerlTable::node_angles(0, 29, 0);
+        assert!(td_last < 0.5 && td_next >= 0.5);
+        let mid = holes
+            .lookup_interpolated(0.01, 0.5 * (td_last + td_next), 0.3)
+            .unwrap();
+        assert_eq!(mid, [1.0, 2.0, 3.0]);
+        assert_eq!(holes.lookup_interpolated(0.01, 1.2, 0.3), None);
+        assert_eq!(holes.lookup_interpolated(f64::NAN, 0.1, 0.3), None);
     }
 
     /// The parallel row build gives, for any thread count, exactly the

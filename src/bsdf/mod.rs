@@ -31,6 +31,7 @@ mod flat;
 mod ggx;
 mod lanes;
 mod measured;
+pub use measured::InterpolatedMerl;
 mod utia;
 
 pub use anisotropic::{AnisoSampler, PHI_SUB, THETA_SUB};

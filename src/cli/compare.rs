@@ -39,6 +39,11 @@ pub struct CompareArgs {
     /// How the environment light is integrated.
     #[arg(long, value_enum, default_value_t = EnvArg::Sphere)]
     pub env: EnvArg,
+    /// How a MERL table is read for the renders: truncate (MERL's reader,
+    /// each node's value held across its bin) or interpolate (between the
+    /// nodes, the convention the tables are made with).
+    #[arg(long, value_enum, default_value_t = ReaderArg::Truncate)]
+    pub reader: ReaderArg,
     /// Write reference.png, test.png and difference.png (x8) into this folder.
     #[arg(long)]
     pub images: Option<PathBuf>,
@@ -49,6 +54,29 @@ pub struct CompareArgs {
     /// Overwrite existing images.
     #[arg(long)]
     pub force: bool,
+}
+
+/// How a MERL table is read for the renders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReaderArg {
+    /// MERL's reader: the bin's lower-edge node, held across the bin
+    Truncate,
+    /// Multilinear between the nodes (`MerlTable::lookup_interpolated`)
+    Interpolate,
+}
+
+/// The render's view of a measured table under `reader`.
+fn reader_bsdf<'a>(
+    table: &'a npf_data_loaders::Table,
+    reader: ReaderArg,
+    slot: &'a mut Option<crate::bsdf::InterpolatedMerl<'a>>,
+) -> &'a (dyn crate::bsdf::Bsdf + Sync) {
+    match (table, reader) {
+        (npf_data_loaders::Table::Merl(t), ReaderArg::Interpolate) => {
+            slot.insert(crate::bsdf::InterpolatedMerl(t))
+        }
+        _ => super::table_bsdf(table),
+    }
 }
 
 /// The environment quadrature (see `npf::render::EnvQuadrature`).
@@ -184,12 +212,16 @@ pub fn run(args: CompareArgs) -> CliResult {
         n_theta: args.n_theta,
         env: args.env.into(),
     };
-    let reference = Reference::new(super::table_bsdf(&table), &samples, opts);
+    let mut slot = None;
+    let reference = Reference::new(reader_bsdf(&table, args.reader, &mut slot), &samples, opts);
     let mut evals = Vec::with_capacity(tests.len());
     for (path, test) in args.test.iter().zip(&tests) {
         let (eval, image) = match test {
             Test::Model(model) => reference.evaluate_model(args.max_theta, model),
-            Test::Table(other) => reference.evaluate(args.max_theta, super::table_bsdf(other)),
+            Test::Table(other) => {
+                let mut slot = None;
+                reference.evaluate(args.max_theta, reader_bsdf(other, args.reader, &mut slot))
+            }
         }
         .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))?;
         if !args.json {
