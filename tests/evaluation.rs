@@ -445,6 +445,11 @@ fn baselines_fit_reconstruct_and_compare_through_the_cli() {
         assert_eq!(both[k], one, "{}", m.display());
         assert!(one["render_psnr_db"].as_f64().unwrap() > 20.0, "{one}");
     }
+    // Tests are held at once: a bounded number per run.
+    let many: Vec<&str> = std::iter::repeat(s(&ggx)).take(17).collect();
+    let o = npf(&[&["compare", s(&input)][..], &many[..]].concat());
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("at most 16 tests per run, got 17"));
     // One test.png: --images takes one test.
     let o = npf(&[
         "compare",

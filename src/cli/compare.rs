@@ -87,7 +87,7 @@ pub enum EnvArg {
     Sphere,
     /// Per pixel, a grid of half vectors dense near the normal: sharp
     /// highlights converge (use --n-theta 90, MERL's theta_h cells; about
-    /// 25 times the sphere grid's cost at 24)
+    /// 20 times the sphere grid's cost at 24)
     HalfVector,
 }
 
@@ -99,6 +99,9 @@ impl From<EnvArg> for EnvQuadrature {
         }
     }
 }
+
+/// Most tests `npf compare` takes in one run.
+pub const MAX_TESTS: usize = 16;
 
 /// Gain of the difference images (|reference - test| x this).
 pub const DIFF_GAIN: f64 = 8.0;
@@ -167,6 +170,13 @@ pub fn run(args: CompareArgs) -> CliResult {
         return Err(CliError::Message(
             "--res must be 1 to 4096 and --n-theta 1 to 1024".into(),
         ));
+    }
+    // Every test is held at once (a MERL table is 35 MB).
+    if args.test.len() > MAX_TESTS {
+        return Err(CliError::Message(format!(
+            "at most {MAX_TESTS} tests per run, got {}",
+            args.test.len()
+        )));
     }
     let names = ["reference.png", "test.png", "difference.png"];
     if let Some(dir) = &args.images {
