@@ -1,7 +1,8 @@
-//! `npf compare REF.{binary,bin} MODEL_OR_TABLE [--images DIR]`: every error
-//! measure of `docs/evaluation.md` for a model file (.json, .npfb) or a
-//! second measured table against a reference table (MERL or UTIA), and optionally the two
-//! sphere renders and their difference as PNG.
+//! `npf compare REF.{binary,bin} MODEL_OR_TABLE... [--images DIR]`: every
+//! error measure of `docs/evaluation.md` for model files (.json, .npfb) or
+//! other measured tables against a reference table (MERL or UTIA), the
+//! reference rendered once for all of them, and optionally (one test) the
+//! two sphere renders and their difference as PNG.
 
 use super::png::encode_png;
 use super::{check_outputs, CliError, CliResult};
