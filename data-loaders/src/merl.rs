@@ -241,6 +241,19 @@ impl MerlTable {
     /// within 1e-9 bin widths below a bin edge counts as in that bin, so
     /// `lookup` at [`MerlTable::node_angles`] returns that node's cell.
     pub fn lookup(&self, theta_h: f64, theta_d: f64, phi_d: f64) -> Option<[f64; 3]> {
+        let (x_th, x_td, x_pd) = Self::index_coords(theta_h, theta_d, phi_d)?;
+        self.cell(Self::index(
+            bin(x_th, Self::RES_THETA_H),
+            bin(x_td, Self::RES_THETA_D),
+            bin(x_pd, Self::RES_PHI_D),
+        ))
+    }
+
+    /// Continuous index coordinates of a query, nodes at the integers:
+    /// (sqrt(theta_h / (pi/2)) 90 (0 for theta_h <= 0), theta_d / (pi/2) 90,
+    /// phi_d / pi 180 after adding pi to a negative phi_d); `None` for a NaN
+    /// angle. Both readers start from them.
+    fn index_coords(theta_h: f64, theta_d: f64, phi_d: f64) -> Option<(f64, f64, f64)> {
         if theta_h.is_nan() || theta_d.is_nan() || phi_d.is_nan() {
             return None;
         }
@@ -251,12 +264,7 @@ impl MerlTable {
         };
         let x_td = theta_d / FRAC_PI_2 * Self::RES_THETA_D as f64;
         let pd = if phi_d < 0.0 { phi_d + PI } else { phi_d };
-        let x_pd = pd / PI * Self::RES_PHI_D as f64;
-        self.cell(Self::index(
-            bin(x_th, Self::RES_THETA_H),
-            bin(x_td, Self::RES_THETA_D),
-            bin(x_pd, Self::RES_PHI_D),
-        ))
+        Some((x_th, x_td, pd / PI * Self::RES_PHI_D as f64))
     }
 
     /// The value at (theta_h, theta_d, phi_d) interpolated between the
@@ -270,17 +278,9 @@ impl MerlTable {
     /// the others' weights renormalised; `None` if all are missing or an
     /// angle is NaN.
     pub fn lookup_interpolated(&self, theta_h: f64, theta_d: f64, phi_d: f64) -> Option<[f64; 3]> {
-        if theta_h.is_nan() || theta_d.is_nan() || phi_d.is_nan() {
-            return None;
-        }
-        let x_th = if theta_h <= 0.0 {
-            0.0
-        } else {
-            (theta_h / FRAC_PI_2).sqrt() * Self::RES_THETA_H as f64
-        };
-        let x_td = (theta_d / FRAC_PI_2 * Self::RES_THETA_D as f64).max(0.0);
-        let pd = if phi_d < 0.0 { phi_d + PI } else { phi_d };
-        let x_pd = (pd / PI * Self::RES_PHI_D as f64).rem_euclid(Self::RES_PHI_D as f64);
+        let (x_th, x_td, x_pd) = Self::index_coords(theta_h, theta_d, phi_d)?;
+        let x_td = x_td.max(0.0);
+        let x_pd = x_pd.rem_euclid(Self::RES_PHI_D as f64);
         // (lower node, upper node, weight of the upper one) on a held axis
         let held = |x: f64, n: usize| {
             let last = (n - 1) as f64;
