@@ -202,10 +202,14 @@ impl Default for FitConfig {
             accelerate: o.accelerate,
             threads: 0,
             diffuse: o.diffuse,
-            // Measured on the 16 MERL tables (BENCHMARKS.md, issue 15):
-            // one level at a 32nd of the samples, run to 1e-3.
+            // One level at a 32nd of the samples (BENCHMARKS.md, issue 15),
+            // run to 1e-4: at 1e-3 it stopped on the plateau of a crawl
+            // (violet-acrylic: sweep 23 of about 200; the crawl ends 16 %
+            // lower), which the full set, holding G, cannot leave;
+            // the 100-sweep limit keeps every MERL fit under 2 s (issue 16,
+            // BENCHMARKS.md "Issue 16 under its own protocol").
             coarse: vec![32],
-            coarse_tol: 1e-3,
+            coarse_tol: 1e-4,
             coarse_max_sweeps: 100,
             keep_coarse_g: None,
             kept_g_tol: None,
