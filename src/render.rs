@@ -236,18 +236,9 @@ pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
                 }
                 EnvQuadrature::HalfVector => {
                     for (h, dh) in &half {
-                        let c = dot(wo, *h);
-                        if c <= 0.0 {
+                        let Some((wi, c)) = crate::bsdf::reflect_up(wo, *h) else {
                             continue;
-                        }
-                        let wi = [
-                            2.0 * c * h[0] - wo[0],
-                            2.0 * c * h[1] - wo[1],
-                            2.0 * c * h[2] - wo[2],
-                        ];
-                        if wi[2] <= 0.0 {
-                            continue;
-                        }
+                        };
                         // back to the world frame: wi = x t + y b + z n
                         let world =
                             std::array::from_fn(|k| wi[0] * t[k] + wi[1] * b[k] + wi[2] * n[k]);

@@ -241,6 +241,19 @@ pub(crate) fn reflect(wo: Vec3, h: Vec3) -> Vec3 {
     [k * h[0] - wo[0], k * h[1] - wo[1], k * h[2] - wo[2]]
 }
 
+/// [`reflect`] of `wo` about `h` with the cosine wo . h, where that cosine
+/// is positive and the reflection lies above the surface (a half vector
+/// that reflects `wo` into the upper hemisphere).
+#[inline]
+pub(crate) fn reflect_up(wo: Vec3, h: Vec3) -> Option<(Vec3, f64)> {
+    let oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
+    if oh <= 0.0 {
+        return None;
+    }
+    let wi = reflect(wo, h);
+    (wi[2] > 0.0).then_some((wi, oh))
+}
+
 /// Directional albedo of a BSDF at view angle `theta_o` (radians): the
 /// integral of f(wo, wi) cos theta_i over the incident hemisphere by
 /// [`half_vector_quadrature`] with 160 strata in u and 320 in phi_h (the
@@ -284,18 +297,9 @@ pub fn half_vector_quadrature(
             let mut acc = vec![0.0; width];
             for b in 0..nphi {
                 let h = spherical(theta_h, (b as f64 + 0.5) * dphi);
-                let oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
-                if oh <= 0.0 {
+                let Some((wi, oh)) = reflect_up(wo, h) else {
                     continue;
-                }
-                let wi = [
-                    2.0 * oh * h[0] - wo[0],
-                    2.0 * oh * h[1] - wo[1],
-                    2.0 * oh * h[2] - wo[2],
-                ];
-                if wi[2] <= 0.0 {
-                    continue;
-                }
+                };
                 add(wo, wi, wi[2] * 4.0 * oh * w_theta, &mut acc);
             }
             acc
