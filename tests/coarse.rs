@@ -382,16 +382,27 @@ fn a_level_with_its_partner_equals_one_without() {
     let a = Executor::new(&small, opts).partner(&alone).run().unwrap();
     assert_stages_monotone(&a, "level without a partner");
     // Served from the start: the partner waits for the lead, then serves.
-    let served = Duo::new();
-    let b = served.with_partner(|| Executor::new(&small, opts).partner(&served).run().unwrap());
-    // A partner preempted for long (a busy machine) leaves early.
-    let (ran, back, left) = served.handed_off();
-    eprintln!("partner: {ran} halves run, {back} taken back, left early: {left}");
-    assert!(ran > 0 || left, "the partner ran no half");
-    assert_eq!(a.objective.to_bits(), b.objective.to_bits());
-    assert_eq!(a.factors.g, b.factors.g);
-    assert_eq!(a.factors.d, b.factors.d);
-    assert_eq!(a.factors.f, b.factors.f);
+    // Whether it wins any half is up to the scheduler (with the other
+    // tests on two cores the lead sometimes takes every half back), so
+    // the served run is repeated until the partner has run one or left;
+    // every run must give the same bits.
+    let mut exercised = false;
+    for _ in 0..8 {
+        let served = Duo::new();
+        let b = served.with_partner(|| Executor::new(&small, opts).partner(&served).run().unwrap());
+        // A partner preempted for long (a busy machine) leaves early.
+        let (ran, back, left) = served.handed_off();
+        eprintln!("partner: {ran} halves run, {back} taken back, left early: {left}");
+        assert_eq!(a.objective.to_bits(), b.objective.to_bits());
+        assert_eq!(a.factors.g, b.factors.g);
+        assert_eq!(a.factors.d, b.factors.d);
+        assert_eq!(a.factors.f, b.factors.f);
+        if ran > 0 || left {
+            exercised = true;
+            break;
+        }
+    }
+    assert!(exercised, "the partner ran no half in eight runs");
     // A level that fails at once (a start on another layout) releases its partner.
     let failing = Duo::new();
     let other = init::initial_factors(Layout::anisotropic(), 3);
