@@ -14,7 +14,9 @@
 use crate::model::Layout;
 use crate::samples::{FitSet, GUse, SampleData, SampleError, SampleOptions, SampleSource};
 use crate::solver::duo::Duo;
-use crate::solver::{Executor, Factors, FitOptions, FitResult, GMethod, Observer, SolverError};
+use crate::solver::{
+    DiffuseKind, Executor, Factors, FitOptions, FitResult, GMethod, Observer, SolverError,
+};
 use npf_data_loaders::MeasuredSamples;
 
 /// Every `factor`-th sample on average, chosen by a hash of the index (not a
@@ -75,6 +77,10 @@ pub struct CoarseLevel {
     pub converged: bool,
     /// Seconds: building its set and fitting it.
     pub seconds: f64,
+    /// For a separable diffuse form's first level, whether the run that
+    /// held P at 1 first was kept (lower objective) over the one that
+    /// updated it from the first sweep.
+    pub separable_held: Option<bool>,
 }
 
 /// Why a coarse-to-fine fit could not run.
@@ -212,12 +218,15 @@ pub fn fit_beside<'a, T: Send>(
     }
     let ((set, set_seconds), beside) = set;
     let set = set?;
-    let (start, levels) = coarse?;
+    let (start, form, levels) = coarse?;
     // The decimated levels' sets and the build's temporaries are freed:
     // give their pages back before the full set's caches are allocated.
     crate::memory::release_free();
-    let result = Executor::new(&set, opts_full)
-        .start_from(start)
+    let mut exec = Executor::new(&set, opts_full).start_from(start);
+    if let Some(form) = form {
+        exec = exec.start_form(form);
+    }
+    let result = exec
         .observe(observer)
         .run()?;
     let fitted = CoarseFit {
@@ -289,7 +298,8 @@ fn levels_run(samples: &SampleData, layout: Layout, schedule: Schedule, lobes: u
     })
 }
 
-/// The decimated levels of [`fit`], in turn: the factors they end at.
+/// The decimated levels of [`fit`], in turn: the factors and the diffuse
+/// form they end at (no form when no level ran).
 fn levels_fit(
     samples: &SampleData,
     (layout, so): (Layout, SampleOptions),
@@ -297,8 +307,9 @@ fn levels_fit(
     opts: FitOptions,
     mut start: Factors,
     duo: &Duo,
-) -> Result<(Factors, Vec<CoarseLevel>), CoarseError> {
+) -> Result<(Factors, Option<crate::model::DiffuseForm>, Vec<CoarseLevel>), CoarseError> {
     let mut done = Vec::new();
+    let mut form = None;
     let mut level_opts = FitOptions {
         tol: schedule.tol,
         max_sweeps: schedule.max_sweeps,
@@ -318,10 +329,27 @@ fn levels_fit(
             continue;
         }
         let small = FitSet::build(&kept, layout, so)?;
-        let r = Executor::new(&small, level_opts)
-            .start_from(start)
-            .partner(duo)
-            .run()?;
+        let run = |start: Factors, form: Option<crate::model::DiffuseForm>, hold: bool| {
+            let mut exec = Executor::new(&small, level_opts).start_from(start);
+            if let Some(form) = form {
+                exec = exec.start_form(form);
+            }
+            exec.hold_form(hold).partner(duo).run()
+        };
+        // A separable P's first level runs both ways of starting it
+        // (`Executor::hold_form`) and keeps the lower objective.
+        let (r, held) = match form.take() {
+            None if opts.diffuse == DiffuseKind::Separable => {
+                let free = run(start.clone(), None, false)?;
+                let held = run(start, None, true)?;
+                if held.objective < free.objective {
+                    (held, Some(true))
+                } else {
+                    (free, Some(false))
+                }
+            }
+            carried => (run(start, carried, false)?, None),
+        };
         print_stages(factor, &r.history);
         done.push(CoarseLevel {
             factor,
@@ -329,10 +357,12 @@ fn levels_fit(
             sweeps: r.history.len(),
             converged: r.converged,
             seconds: t.elapsed().as_secs_f64(),
+            separable_held: held,
         });
         start = r.factors;
+        form = Some(r.model.diffuse_form);
     }
-    Ok((start, done))
+    Ok((start, form, done))
 }
 
 #[cfg(test)]

@@ -916,12 +916,18 @@ fn run_kind(
         let coarse = (!fitted.levels.is_empty()).then(|| {
             let kept = schedule.keep_g;
             serde_json::json!({
-                "levels": fitted.levels.iter().map(|l| serde_json::json!({
-                    "factor": l.factor,
-                    "samples": l.samples,
-                    "sweeps": l.sweeps,
-                    "converged": l.converged,
-                })).collect::<Vec<_>>(),
+                "levels": fitted.levels.iter().map(|l| {
+                    let mut v = serde_json::json!({
+                        "factor": l.factor,
+                        "samples": l.samples,
+                        "sweeps": l.sweeps,
+                        "converged": l.converged,
+                    });
+                    if let Some(held) = l.separable_held {
+                        v["separable_p_held"] = held.into();
+                    }
+                    v
+                }).collect::<Vec<_>>(),
                 "g_on_full_set": if kept { "kept" } else { "updated" },
                 "full_set_tol": if kept { schedule.kept_g_tol } else { opts.tol },
             })

@@ -222,7 +222,22 @@ pub enum DiffuseForm {
         /// Facet slope deviation (radians).
         sigma: f32,
     },
+    /// A reciprocal separable factor b = P(theta_i) P(theta_o), one table P
+    /// shared by the channels, linear between uniform nodes spanning [0,
+    /// pi/2] inclusively (Lambert when P = 1). It represents
+    /// Ashikhmin-Shirley-type coupled diffuse, whose factor is (1 - (1 -
+    /// cos/2)^5) at each direction, exactly. Fitted inside AWLS (its nodes
+    /// by the cubic rule of the G update); the fit keeps 2 int P(mu) mu dmu
+    /// = 1, so pi d_C P(theta_o) is the term's directional albedo.
+    Separable {
+        /// P on [`SEPARABLE_NODES`] (or as many as the file holds, >= 2)
+        /// uniform theta nodes.
+        p: Vec<f32>,
+    },
 }
+
+/// Nodes of the separable diffuse factor's table P (6 degrees apart).
+pub const SEPARABLE_NODES: usize = 16;
 
 impl DiffuseForm {
     /// Whether this is the Lambertian form.
@@ -236,6 +251,16 @@ impl DiffuseForm {
             DiffuseForm::Lambert => "lambert",
             DiffuseForm::EnergyCoupled { .. } => "energy-coupled",
             DiffuseForm::OrenNayar { .. } => "oren-nayar",
+            DiffuseForm::Separable { .. } => "separable",
+        }
+    }
+
+    /// The values the form adds to the model's parameters (P's nodes for
+    /// the separable form; the others have none the sweep updates).
+    pub fn param_count(&self) -> usize {
+        match self {
+            DiffuseForm::Separable { p } => p.len(),
+            _ => 0,
         }
     }
 
@@ -253,6 +278,7 @@ impl DiffuseForm {
             DiffuseForm::OrenNayar { sigma } => {
                 [oren_nayar(*sigma as f64, theta_i, theta_o, cos_dphi); 3]
             }
+            DiffuseForm::Separable { p } => [table_at(p, theta_i) * table_at(p, theta_o); 3],
         }
     }
 
@@ -292,13 +318,48 @@ impl DiffuseForm {
                     )))
                 }
             }
+            DiffuseForm::Separable { p } => {
+                if p.len() < 2 {
+                    return Err(ModelError::TableSize {
+                        table: "separable diffuse P".into(),
+                        got: p.len(),
+                        expected: SEPARABLE_NODES,
+                    });
+                }
+                if p.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                    Ok(())
+                } else {
+                    Err(ModelError::DiffuseForm(
+                        "separable P values must be finite and >= 0".into(),
+                    ))
+                }
+            }
         }
     }
 }
 
+/// 2 int_0^1 P(mu) mu dmu = int_0^{pi/2} P(theta) sin(2 theta) dtheta for
+/// P linear between uniform nodes over [0, pi/2], exactly (per interval,
+/// the integrals of sin(2t) and t sin(2t) in closed form).
+pub fn separable_mean(p: &[f32]) -> f64 {
+    let h = std::f64::consts::FRAC_PI_2 / (p.len() - 1) as f64;
+    // int sin 2t = -cos(2t)/2; int t sin 2t = -t cos(2t)/2 + sin(2t)/4.
+    let i0 = |t: f64| -0.5 * (2.0 * t).cos();
+    let i1 = |t: f64| -0.5 * t * (2.0 * t).cos() + 0.25 * (2.0 * t).sin();
+    let mut sum = 0.0;
+    for k in 0..p.len() - 1 {
+        let (a, b) = (k as f64 * h, (k + 1) as f64 * h);
+        // P = p_k + (p_{k+1} - p_k) (t - a) / h on [a, b].
+        let slope = (p[k + 1] as f64 - p[k] as f64) / h;
+        let base = p[k] as f64 - slope * a;
+        sum += base * (i0(b) - i0(a)) + slope * (i1(b) - i1(a));
+    }
+    sum
+}
+
 /// Linear interpolation of a table on uniform theta nodes over [0, pi/2].
 #[inline]
-fn table_at(t: &[f32], theta: f64) -> f64 {
+pub(crate) fn table_at(t: &[f32], theta: f64) -> f64 {
     let x = (theta / std::f64::consts::FRAC_PI_2).clamp(0.0, 1.0) * (t.len() - 1) as f64;
     let k = (x as usize).min(t.len() - 2);
     let u = x - k as f64;
@@ -638,7 +699,7 @@ impl Model {
     }
 
     /// The diffuse term's directional albedo (integral of d_C b_C cos
-    /// theta_i) at view angle theta_o: exact for the Lambertian and
+    /// theta_i) at view angle theta_o: exact for the Lambertian, separable and
     /// energy-coupled forms, Oren-Nayar's A term only (a lower bound) for
     /// that form; plus the multiple-scattering term's albedo when the model
     /// is compensated. Samplers weigh their diffuse component by it.
@@ -663,6 +724,10 @@ impl Model {
             DiffuseForm::OrenNayar { sigma } => {
                 let s2 = (*sigma as f64).powi(2);
                 d.map(|v| v * (1.0 - 0.5 * s2 / (s2 + 0.33)))
+            }
+            DiffuseForm::Separable { p } => {
+                let k = table_at(p, theta_o) * separable_mean(p);
+                d.map(|v| v * k)
             }
         }
     }

@@ -21,10 +21,11 @@
 //!
 //! The diffuse form (`diffuse_form` in JSON, absent in older files: Lambert)
 //! is the binary header's formerly reserved u16: 0 Lambert (no trailer, the
-//! files earlier versions wrote), 1 energy-coupled, 2 Oren-Nayar; forms 1
-//! and 2 append a trailer after the parameters: u32 count, then that many
-//! f32 (energy-coupled: E_R, E_G, E_B tables of n values each, then the three
-//! averages, count = 3 n + 3; Oren-Nayar: sigma, count = 1). Bit 0x100 of
+//! files earlier versions wrote), 1 energy-coupled, 2 Oren-Nayar, 3
+//! separable; forms 1 to 3 append a trailer after the parameters: u32
+//! count, then that many f32 (energy-coupled: E_R, E_G, E_B tables of n
+//! values each, then the three averages, count = 3 n + 3; Oren-Nayar:
+//! sigma, count = 1; separable: P's n >= 2 node values, count = n). Bit 0x100 of
 //! that word marks height-correlated masking (`masking` in JSON); bit 0x200
 //! a compensation term (`compensation`), whose own trailer block (u32
 //! count, then E_R, E_G, E_B of n values, three averages, three scales:
@@ -145,7 +146,7 @@ fn conventions() -> serde_json::Value {
             "phi": "optional periodic azimuth axis of a 2-D table: n nodes at phi_k = 2 pi k / n, linear, wrapping; the table is row-major theta x phi; D reads (theta_h, phi_h), G (theta, phi) of each direction, F (theta_d, phi_d)"
         },
         "gauge": "max of G over constrained control points = 1; 2 pi * integral over theta_h <= 60 deg of D cos sin = 1; F_C(0) = 1",
-        "diffuse_form": "b_C: lambert 1; energy-coupled (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - average_C), E_C linear on uniform theta nodes over [0, pi/2]; oren-nayar A + B max(0, cos(phi_i - phi_o)) sin(max theta) tan(min theta), A = 1 - sigma^2 / (2 (sigma^2 + 0.33)), B = 0.45 sigma^2 / (sigma^2 + 0.09); absent: lambert",
+        "diffuse_form": "b_C: lambert 1; energy-coupled (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - average_C), E_C linear on uniform theta nodes over [0, pi/2]; oren-nayar A + B max(0, cos(phi_i - phi_o)) sin(max theta) tan(min theta), A = 1 - sigma^2 / (2 (sigma^2 + 0.33)), B = 0.45 sigma^2 / (sigma^2 + 0.09); separable P(theta_i) P(theta_o), P (shared by the channels) linear on n uniform theta nodes spanning [0, pi/2] inclusively; absent: lambert",
         "masking": "separable (absent): G^m(theta_i) G^m(theta_o); height-correlated: G2 = Gi Go / (Gi + Go - Gi Go) with Gi, Go the tabulated G clamped to [0, 1], in place of the product",
         "compensation": "optional Kulla-Conty term added to rho: scale_C (1 - E_C(theta_i)) (1 - E_C(theta_o)) / (1 - average_C), E_C linear on uniform theta nodes over [0, pi/2]",
         "below_horizon": "the BRDF is 0 when cos theta_i <= 0 or cos theta_o <= 0"
@@ -311,6 +312,7 @@ pub fn to_binary(model: &Model) -> Vec<u8> {
             (1, albedo.iter().flatten().chain(average).copied().collect())
         }
         DiffuseForm::OrenNayar { sigma } => (2, vec![*sigma]),
+        DiffuseForm::Separable { p } => (3, p.clone()),
     };
     let mut flags = code;
     if !model.masking.is_separable() {
@@ -358,7 +360,8 @@ fn diffuse_from(code: u16, extra: &[f32], path: &Path) -> Result<DiffuseForm, Mo
             })
         }
         2 if extra.len() == 1 => Ok(DiffuseForm::OrenNayar { sigma: extra[0] }),
-        1 | 2 => Err(invalid(
+        3 if extra.len() >= 2 => Ok(DiffuseForm::Separable { p: extra.to_vec() }),
+        1..=3 => Err(invalid(
             path,
             format!(
                 "diffuse form {code} with a trailer of {} values",

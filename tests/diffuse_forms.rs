@@ -5,7 +5,7 @@
 use npf::energy::coupled::{energy_coupled_form, specular_albedo};
 use npf::loaders::MeasuredSamples;
 use npf::metrics::compare_model;
-use npf::model::{DiffuseForm, Layout, Model};
+use npf::model::{separable_mean, DiffuseForm, Layout, Model, SEPARABLE_NODES};
 use npf::modelfile::{self, ModelFile};
 use npf::solver::{DiffuseKind, FitOptions, FitResult};
 use npf::synth::known_factor_model;
@@ -101,11 +101,69 @@ fn oren_nayar_truth_is_recovered() {
     assert!((sigma - 0.4).abs() < 0.04, "sigma {sigma}");
 }
 
+/// Ashikhmin-Shirley's coupled diffuse factor at each direction, 1 - (1 -
+/// cos theta / 2)^5, on P's nodes, in the form's gauge (2 int P mu dmu = 1).
+fn ashikhmin_shirley_p() -> Vec<f32> {
+    let n = SEPARABLE_NODES;
+    let p: Vec<f32> = (0..n)
+        .map(|k| {
+            let theta = k as f64 / (n - 1) as f64 * std::f64::consts::FRAC_PI_2;
+            (1.0 - (1.0 - 0.5 * theta.cos()).powi(5)) as f32
+        })
+        .collect();
+    let mean = separable_mean(&p);
+    p.iter().map(|&v| (v as f64 / mean) as f32).collect()
+}
+
+#[test]
+fn separable_truth_is_recovered() {
+    // Ashikhmin-Shirley-type coupled diffuse: P falls to 0 at the horizon.
+    let want = ashikhmin_shirley_p();
+    let t = truth(|_| DiffuseForm::Separable { p: want.clone() });
+    let res = recovers(&t, DiffuseKind::Separable, 1e-3);
+    let DiffuseForm::Separable { p } = &res.model.diffuse_form else {
+        unreachable!()
+    };
+    // The samples reach 85 degrees: the nodes up to there are read, the
+    // horizon node (90) only by the interval before it.
+    for k in 0..SEPARABLE_NODES - 1 {
+        let (got, want) = (p[k] as f64, want[k] as f64);
+        assert!((got - want).abs() <= 0.01 * want, "P node {k}: {got} vs {want}");
+    }
+}
+
+#[test]
+fn separable_p_is_recovered_from_a_cold_start() {
+    // No truth in the start: the default initialisation, P = 1. The rough
+    // lobe and P then trade energy along a flat valley near grazing: after
+    // 150 sweeps nodes 0-72 degrees were measured within 0.7 %, 78 degrees
+    // 1.2 % off, and 84 degrees (read only by the few, cosine-weighted
+    // samples between 78 and 85 degrees) 3.3 %, which is left unchecked.
+    let want = ashikhmin_shirley_p();
+    let t = truth(|_| DiffuseForm::Separable { p: want.clone() });
+    let s = samples(&t, 5);
+    let res = fit(&s, DiffuseKind::Separable, 150, false);
+    let DiffuseForm::Separable { p } = &res.model.diffuse_form else {
+        unreachable!()
+    };
+    let e = compare_model(&s, 85.0, &res.model);
+    eprintln!("cold start: {} sweeps, rel {:.3e}, P {p:?}", res.history.len(), e.rel_cos_rmse);
+    assert!(e.rel_cos_rmse < 2e-3, "{e:?}");
+    for k in 0..SEPARABLE_NODES - 2 {
+        let (got, want) = (p[k] as f64, want[k] as f64);
+        assert!((got - want).abs() <= 0.02 * want, "P node {k}: {got} vs {want}");
+    }
+}
+
 #[test]
 fn objective_never_rises_with_diffuse_refreshes() {
     let t = truth(energy_coupled_form);
     let s = samples(&t, 11);
-    for kind in [DiffuseKind::EnergyCoupled, DiffuseKind::OrenNayar] {
+    for kind in [
+        DiffuseKind::EnergyCoupled,
+        DiffuseKind::OrenNayar,
+        DiffuseKind::Separable,
+    ] {
         let res = fit(&s, kind, 8, true);
         assert_stages_monotone(&res, &format!("{kind:?}"));
         assert!(res.objective < res.initial_objective);
@@ -134,6 +192,9 @@ fn model_files_carry_the_diffuse_form() {
         DiffuseForm::Lambert,
         energy_coupled_form(&truth(|_| DiffuseForm::Lambert)),
         DiffuseForm::OrenNayar { sigma: 0.3 },
+        DiffuseForm::Separable {
+            p: ashikhmin_shirley_p(),
+        },
     ] {
         let m = truth(|_| form.clone());
         for ext in ["json", "npfb"] {

@@ -89,4 +89,5 @@ def fit(
     energy_scale: Optional[bool] = None,
     threads: int = 0,
     progress: Optional[Callable[[Dict[str, Any]], Any]] = None,
+    diffuse: str = "lambert",
 ) -> Model: ...

@@ -17,7 +17,7 @@ use npf::loaders::{LoadError, MeasuredSamples, MerlTable, UtiaTable};
 use npf::model::Model as CoreModel;
 use npf::modelfile::{self, ModelFile, ModelFileError};
 use npf::samples::Weighting;
-use npf::solver::{GMethod, SweepReport};
+use npf::solver::{DiffuseKind, GMethod, SweepReport};
 use numpy::ndarray::{Array1, Array2, Array4, ArrayView2, Axis as NdAxis};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray4, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods,
@@ -970,13 +970,14 @@ fn report_dict<'py>(py: Python<'py>, part: usize, r: &SweepReport) -> PyResult<B
 /// `progress`, if given, is called with a dict after every sweep (part,
 /// sweep, objective, rel_decrease, elapsed, ...); an exception it raises is
 /// re-raised once the fit ends. `energy_scale` (None: untrusted tables
-/// only; True, False) is `npf fit --energy-scale`. The GIL is released
+/// only; True, False) is `npf fit --energy-scale`; `diffuse` is `npf fit
+/// --diffuse` (lambert, energy-coupled, oren-nayar or separable). The GIL is released
 /// while fitting.
 #[pyfunction]
 #[pyo3(signature = (table_or_path, lobes = 3, weighting = "compressive", *, model = "factor", nodes = 90,
     epsilon = None, max_theta = None, max_theta_h = None, max_sweeps = None, tol = None, g_method = None,
     smooth_g = None, d_monotone_from = None, accelerate = None, energy_scale = None, threads = 0,
-    progress = None))]
+    progress = None, diffuse = "lambert"))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
@@ -997,6 +998,7 @@ fn fit(
     energy_scale: Option<bool>,
     threads: usize,
     progress: Option<PyObject>,
+    diffuse: &str,
 ) -> PyResult<PyModel> {
     let d = FitConfig::default();
     let config = FitConfig {
@@ -1021,8 +1023,11 @@ fn fit(
         d_monotone_from: d_monotone_from.or(d.d_monotone_from),
         accelerate: accelerate.unwrap_or(d.accelerate),
         threads,
-        // Lambertian, the default (`npf fit --diffuse` chooses others).
-        diffuse: d.diffuse,
+        diffuse: parse_name::<DiffuseKind>(
+            diffuse,
+            "diffuse",
+            "lambert, energy-coupled, oren-nayar or separable",
+        )?,
         coarse: d.coarse.clone(),
         coarse_tol: d.coarse_tol,
         gauss_newton: d.gauss_newton,

@@ -68,9 +68,32 @@ def test_progress_errors_are_raised_after_the_fit_and_the_gil_is_free():
     assert spins > 10_000, spins
 
 
+def test_separable_diffuse_fit_is_the_cli_fit_and_samples_consistently(tmp_path):
+    truth = known_factor_model((0.2,))
+    npf.write_merl(tmp_path / "t.binary", truth.reconstruct())
+    py = npf.fit(tmp_path / "t.binary", lobes=1, max_sweeps=5, diffuse="separable")
+    run_npf("fit", tmp_path / "t.binary", "-o", tmp_path / "cli.json", "--lobes", "1",
+            "--max-sweeps", "5", "--diffuse", "separable", "--quiet")
+    cli = npf.load(tmp_path / "cli.json")
+    rng = np.random.default_rng(7)
+    wo = rng.normal(size=(500, 3))
+    wo[:, 2] = np.abs(wo[:, 2]) + 0.05
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    wi = wo * np.array([-1.0, -1.0, 1.0])
+    # The same model (P included: eval reads it) from both front doors.
+    np.testing.assert_array_equal(py.eval(wi, wo), cli.eval(wi, wo))
+    # Its sampler's weight is f cos / pdf of the model's own eval and pdf.
+    wi_s, pdf, weight = py.sample(wo, rng.random((500, 3)))
+    ok = pdf > 0
+    f = py.eval(wi_s[ok], wo[ok])
+    np.testing.assert_allclose(weight[ok], f * wi_s[ok, 2:3] / pdf[ok][:, None], rtol=1e-6)
+    np.testing.assert_allclose(py.pdf(wo[ok], wi_s[ok]), pdf[ok], rtol=1e-6)
+
+
 @pytest.mark.parametrize(
     "kwargs, message",
     [
+        (dict(diffuse="velvet"), "unknown diffuse"),
         (dict(lobes=0), "lob"),
         (dict(lobes=9), "lob"),
         (dict(weighting="loud"), "unknown weighting"),

@@ -30,16 +30,30 @@ pub fn run(args: InfoArgs) -> CliResult {
         let kind = crate::fit::kind_of(file.fit.as_ref());
         println!("  model kind     {}", kind.name());
         println!("  lobes          {}", m.lobe_count());
-        println!(
-            "  parameters     {} ({} bytes as f32)",
-            m.param_count(),
-            4 * m.param_count()
-        );
+        let form_params = m.diffuse_form.param_count();
+        if form_params == 0 {
+            println!(
+                "  parameters     {} ({} bytes as f32)",
+                m.param_count(),
+                4 * m.param_count()
+            );
+        } else {
+            let all = m.param_count() + form_params;
+            println!(
+                "  parameters     {all} ({} factor tables + {form_params} diffuse form; {} bytes as f32)",
+                m.param_count(),
+                4 * all
+            );
+        }
         println!(
             "  layout         D {:?}, F {:?}, G {:?}",
             m.layout.d, m.layout.f, m.layout.g
         );
         println!("  diffuse        {:?}", m.diffuse);
+        println!("  diffuse form   {}", m.diffuse_form.name());
+        if let crate::model::DiffuseForm::Separable { p } = &m.diffuse_form {
+            println!("  diffuse P      {p:?}");
+        }
         for (i, l) in m.lobes.iter().enumerate() {
             let dmax = l.d.iter().cloned().fold(0.0f32, f32::max);
             println!("  lobe {i}         s {:?}, max D {dmax:.4e}", l.s);

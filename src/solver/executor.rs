@@ -9,7 +9,7 @@ use super::updates::{
 };
 use super::{chunked_sum, chunked_sum_mut, FitOptions, SolverError, MAX_LOBES};
 use crate::grid::Grid;
-use crate::model::Model;
+use crate::model::{DiffuseForm, Model};
 use crate::samples::FitSet;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -107,11 +107,17 @@ pub struct FitResult {
     pub seconds: f64,
 }
 
+/// A held separable P joins the sweeps once one lowers the objective by
+/// less than this fraction ([`Executor::hold_form`]).
+const P_JOINS_BELOW: f64 = 1e-3;
+
 /// Runs sweeps on a sample set until convergence, reporting to observers.
 pub struct Executor<'a> {
     set: &'a FitSet,
     options: FitOptions,
     start: Option<Factors>,
+    start_form: Option<DiffuseForm>,
+    hold_form: bool,
     observers: Vec<&'a mut dyn Observer>,
     partner: Option<&'a super::duo::Duo>,
 }
@@ -142,6 +148,8 @@ impl<'a> Executor<'a> {
             set,
             options,
             start: None,
+            start_form: None,
+            hold_form: false,
             observers: Vec::new(),
             partner: None,
         }
@@ -150,6 +158,27 @@ impl<'a> Executor<'a> {
     /// Start from these factors instead of the default initialisation.
     pub fn start_from(mut self, f: Factors) -> Self {
         self.start = Some(f);
+        self
+    }
+
+    /// Start the diffuse form from this one where the options' kind can
+    /// (a coarser level's separable P; the other kinds start as always).
+    pub fn start_form(mut self, form: DiffuseForm) -> Self {
+        self.start_form = Some(form);
+        self
+    }
+
+    /// Hold a separable P that starts at 1 there until a sweep lowers the
+    /// objective by less than [`P_JOINS_BELOW`] (or the tolerance). Updated
+    /// from the first sweep (the default), P can take shapes the lobes' D
+    /// and G should have and settle in a worse minimum than the Lambertian
+    /// fit's (measured on nylon, yellow-plastic and white-fabric); held,
+    /// the lobes can absorb the diffuse term's shape first (a synthetic
+    /// Ashikhmin-Shirley table is then not recovered). Neither is better
+    /// everywhere: the coarse-to-fine fit runs both on its first level and
+    /// keeps the lower objective ([`crate::coarse`]).
+    pub fn hold_form(mut self, hold: bool) -> Self {
+        self.hold_form = hold;
         self
     }
 
@@ -200,7 +229,14 @@ impl<'a> Executor<'a> {
         ];
         let mut g_work = Vec::new();
         update_diffuse_and_scales(set, &mut st, &mask);
-        super::diffuse::start(set, &mut st, &mask, opts.diffuse);
+        super::diffuse::start(set, &mut st, &mask, opts.diffuse, self.start_form.as_ref());
+        let p_inc = match &st.diffuse_form {
+            DiffuseForm::Separable { p } => Some(super::separable::incidence(set, p.len())),
+            _ => None,
+        };
+        // See `hold_form`.
+        let mut form_held = self.hold_form && matches!(&st.diffuse_form,
+            DiffuseForm::Separable { p } if p.iter().all(|&v| v == 1.0));
         let initial = gauge_objective(set, &mut st, &measure);
         let mut prev = initial;
         let mut prev_factors: Option<Factors> = None;
@@ -265,8 +301,8 @@ impl<'a> Executor<'a> {
                 update_diffuse_and_scales(set, &mut st, &mask);
             }
             rec.mark(Stage::DiffuseAndScales, set, &st);
-            if !lambert {
-                super::diffuse::refresh(set, &mut st, &mask, opts.diffuse);
+            if !lambert && !form_held {
+                super::diffuse::refresh(set, &mut st, &mask, opts.diffuse, p_inc.as_ref());
                 rec.mark(Stage::DiffuseForm, set, &st);
             }
             // An extrapolation trial refreshes every cache (to the trial's
@@ -368,6 +404,10 @@ impl<'a> Executor<'a> {
             // A revived lobe only pays off in the next sweep's d, s solve, so
             // its first revival may not end the fit (later ones may: a
             // lobe the data do not need stays dead).
+            if form_held && rel < P_JOINS_BELOW.max(opts.tol) {
+                form_held = false;
+                continue;
+            }
             if rel < opts.tol && !block_convergence {
                 converged = true;
                 break;

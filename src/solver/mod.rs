@@ -23,6 +23,7 @@ pub mod gauge;
 pub mod gauss_newton;
 pub mod init;
 pub mod kernels;
+pub mod separable;
 pub mod state;
 pub mod updates;
 
@@ -61,6 +62,10 @@ pub enum DiffuseKind {
     EnergyCoupled,
     /// Oren-Nayar's rough diffuse, sigma refreshed between sweeps.
     OrenNayar,
+    /// d_C P(theta_i) P(theta_o), one table P shared by the channels,
+    /// updated every sweep by the cubic element rule (Ashikhmin-Shirley-type
+    /// coupled diffuse; Lambert when P = 1).
+    Separable,
 }
 
 /// Options of one AWLS fit.
