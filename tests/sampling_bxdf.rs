@@ -38,12 +38,29 @@ fn lobe_only(alpha: f64) -> Model {
     m
 }
 
+/// The glossy model with a separable diffuse factor whose P falls to 0 at
+/// the horizon (Ashikhmin-Shirley's shape): its diffuse share follows the
+/// view angle.
+fn separable_diffuse() -> Model {
+    let mut m = glossy();
+    let n = npf::model::SEPARABLE_NODES;
+    let p = (0..n)
+        .map(|k| {
+            let theta = k as f64 / (n - 1) as f64 * PI / 2.0;
+            (1.0 - (1.0 - 0.5 * theta.cos()).powi(5)) as f32
+        })
+        .collect();
+    m.diffuse_form = npf::model::DiffuseForm::Separable { p };
+    m
+}
+
 fn models() -> Vec<(&'static str, NpfBxdf)> {
     vec![
         ("specular", NpfBxdf::new(specular()).unwrap()),
         ("glossy", NpfBxdf::new(glossy()).unwrap()),
         ("three-lobes", NpfBxdf::new(three_lobes()).unwrap()),
         ("diffuse", NpfBxdf::new(diffuse_only()).unwrap()),
+        ("separable diffuse", NpfBxdf::new(separable_diffuse()).unwrap()),
     ]
 }
 
@@ -341,9 +358,14 @@ fn sample_returns_the_pdf_and_the_weight_of_what_it_draws() {
 #[test]
 fn mean_weight_is_the_directional_albedo() {
     // Against a deterministic quadrature of f cos over the hemisphere.
-    let b = NpfBxdf::new(glossy()).unwrap();
-    let wo = wo_at(40.0);
-    let thetas = panel_edges(0.0, PI / 2.0, 96, &[40f64.to_radians()]);
+    for (b, theta_o) in [(glossy(), 40.0), (separable_diffuse(), 70.0)] {
+        mean_weight_is_the_albedo_at(NpfBxdf::new(b).unwrap(), theta_o);
+    }
+}
+
+fn mean_weight_is_the_albedo_at(b: NpfBxdf, theta_o: f64) {
+    let wo = wo_at(theta_o);
+    let thetas = panel_edges(0.0, PI / 2.0, 96, &[theta_o.to_radians()]);
     let phis = panel_edges(0.0, 2.0 * PI, 96, &[PI]);
     let mut rng = Pcg64::seed_from_u64(11);
     let n = 400_000;

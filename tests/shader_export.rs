@@ -51,6 +51,23 @@ fn undershooting() -> Model {
     m
 }
 
+/// A model's diffuse term made separable, P rising from 0.4 at normal
+/// incidence to a peak and falling to 0 at the horizon (not a shape a
+/// constant could pass for).
+fn separable(mut m: Model) -> Model {
+    let n = 11;
+    let p = (0..n)
+        .map(|k| {
+            let t = k as f32 / (n - 1) as f32;
+            0.4 + 3.0 * t * (1.0 - t) - 0.4 * t * t
+        })
+        .collect();
+    m.diffuse = [0.12, 0.08, 0.05];
+    m.diffuse_form = npf::model::DiffuseForm::Separable { p };
+    m.validate().unwrap();
+    m
+}
+
 /// The anisotropic layout with D and G varying in phi.
 fn anisotropic() -> Model {
     anisotropic_on(Layout::anisotropic())
@@ -251,6 +268,8 @@ fn c_header_eval_matches_model_eval() {
         ("undershooting", undershooting()),
         ("anisotropic", anisotropic()),
         ("squared D", squared_d()),
+        ("separable diffuse", separable(isotropic())),
+        ("anisotropic, separable diffuse", separable(anisotropic())),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let exe = compile_c(&model, dir.path());
@@ -306,7 +325,11 @@ fn c_header_sampler_matches_its_pdf_and_is_unbiased() {
     if !have("cc", "c_header_sampler_matches_its_pdf_and_is_unbiased") {
         return;
     }
-    for (name, model) in [("isotropic", isotropic()), ("anisotropic", anisotropic())] {
+    for (name, model) in [
+        ("isotropic", isotropic()),
+        ("anisotropic", anisotropic()),
+        ("separable diffuse", separable(isotropic())),
+    ] {
         let dir = tempfile::tempdir().unwrap();
         let exe = compile_c(&model, dir.path());
         for theta_deg in [0.0f64, 40.0, 70.0] {
@@ -370,7 +393,11 @@ fn glsl_functions_compile() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for (name, model) in [("isotropic", isotropic()), ("anisotropic", anisotropic())] {
+    for (name, model) in [
+        ("isotropic", isotropic()),
+        ("anisotropic", anisotropic()),
+        ("separable", separable(anisotropic())),
+    ] {
         let code = shader::glsl(&model).unwrap();
         assert!(code.lines().all(|l| !l.trim_start().starts_with('#')));
         let frag = format!(
@@ -486,6 +513,13 @@ fn bad_models_and_prefixes_are_errors() {
     assert!(matches!(
         shader::c_header(&m),
         Err(ShaderError::InvalidModel(_))
+    ));
+    // A form with no shader code is refused by name.
+    let mut oren = isotropic();
+    oren.diffuse_form = npf::model::DiffuseForm::OrenNayar { sigma: 0.3 };
+    assert!(matches!(
+        shader::glsl(&oren),
+        Err(ShaderError::DiffuseForm("oren-nayar"))
     ));
     for bad in ["", "9a", "a b", "gl_x", "a__b", "x_", "é"] {
         let o = ShaderOptions { prefix: bad.into() };

@@ -53,10 +53,12 @@ def smith_g1(t, a):
     return 2 / (1 + np.sqrt(1 + a * a * np.tan(t) ** 2))
 
 
-def two_lobe_model(path, n=90):
+def two_lobe_model(path, n=90, separable=False):
     """A model with known factors written as npf's JSON model file
     (docs: the file's `conventions`): a near-mirror GGX lobe (alpha 0.05)
-    and a broad one (alpha 0.4), Schlick Fresnel, a little diffuse."""
+    and a broad one (alpha 0.4), Schlick Fresnel, a little diffuse; with
+    `separable`, more diffuse, with the separable form's factor P(theta_i)
+    P(theta_o) of Ashikhmin-Shirley's coupled diffuse (16 nodes)."""
     theta_d = (np.arange(n) / n) ** 2 * np.pi / 2  # sqrt_angle nodes
     theta_f = np.arange(n) / n * np.pi / 2  # uniform nodes
     theta_g = np.arange(n) / (n - 1) * np.pi / 2  # Catmull-Rom control points
@@ -67,6 +69,10 @@ def two_lobe_model(path, n=90):
         "fresnel": [(f0 + (1 - f0) * (1 - np.cos(theta_f)) ** 5).tolist() for f0 in (0.9, 0.7, 0.5)],
         "lobes": [lobe([0.12, 0.12, 0.12], 0.05), lobe([0.1, 0.15, 0.2], 0.4)],
     }
+    if separable:
+        theta_p = np.arange(16) / 15 * np.pi / 2
+        model["diffuse"] = [0.1, 0.12, 0.15]
+        model["diffuse_form"] = {"form": "separable", "p": (1 - (1 - np.cos(theta_p) / 2) ** 5).tolist()}
     path.write_text(json.dumps({"format": "npf-model", "version": 1, "model": model}))
 
 
@@ -94,7 +100,7 @@ def anisotropic_model(path, ax=0.2, ay=0.5):
     path.write_text(json.dumps({"format": "npf-model", "version": 1, "model": model}))
 
 
-@pytest.fixture(scope="module", params=["demo-fit", "two-lobe", "anisotropic"])
+@pytest.fixture(scope="module", params=["demo-fit", "two-lobe", "separable", "anisotropic"])
 def material(request, tmp_path_factory):
     """A model (fitted by `npf demo`, or with known factors), a MERL table
     of it (for `npf compare`) and its `.bsdf` export."""
@@ -102,9 +108,9 @@ def material(request, tmp_path_factory):
     if request.param == "demo-fit":
         npf("demo", "-o", d / "demo", "--quiet", "--lobes", "1", "--max-sweeps", "4")
         model, table = d / "demo" / "ggx-lambert.json", d / "demo" / "ggx-lambert.binary"
-    elif request.param == "two-lobe":
+    elif request.param in ("two-lobe", "separable"):
         model, table = d / "two-lobe.json", d / "two-lobe.binary"
-        two_lobe_model(model)
+        two_lobe_model(model, separable=request.param == "separable")
         npf("reconstruct", model, "-o", table)
     else:
         model, table = d / "aniso.json", None

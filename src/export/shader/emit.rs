@@ -7,9 +7,18 @@
 
 use super::sampler::{SamplerTables, VIEWS, VIEW_MAX_DEG};
 use crate::grid::{Axis, Grid};
-use crate::model::Model;
+use crate::model::{DiffuseForm, Model};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::fmt::Write;
+
+/// P of a separable diffuse form (the one non-Lambertian form the
+/// exports evaluate).
+pub(super) fn separable_p(model: &Model) -> Option<&[f32]> {
+    match &model.diffuse_form {
+        DiffuseForm::Separable { p } => Some(p),
+        _ => None,
+    }
+}
 
 /// Node snap of the linear axes (`grid::axis`): a coordinate within this
 /// of a node reads that node alone.
@@ -106,6 +115,10 @@ impl<'a> Source<'a> {
         s += &self.array("@D", &cat(&|l| &l.d));
         s += &self.array("@G", &cat(&|l| &l.g));
         s += &self.array("@F", &fresnel);
+        if let Some(p) = separable_p(m) {
+            s += "// The separable diffuse factor's P (uniform theta nodes over [0, pi/2]).\n";
+            s += &self.array("@P", p);
+        }
         if with_sampler {
             s += "// Sampler: cell edges in t = sin^2 theta_h, each lobe's cdf at the\n";
             s += &format!(
@@ -211,12 +224,14 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
         self.fill(&s)
     }
 
-    /// The three factor lookups.
+    /// The three factor lookups, and P's for a separable diffuse form.
     pub(super) fn lookups(&self) -> String {
         let l = &self.model.layout;
+        let p = separable_p(self.model).map(|p| ("p", "P", Grid::line(Axis::Closed { n: p.len() })));
         [("d", "D", l.d), ("f", "F", l.f), ("g", "G", l.g)]
-            .iter()
-            .map(|(n, t, g)| self.lookup(n, t, *g))
+            .into_iter()
+            .chain(p)
+            .map(|(n, t, g)| self.lookup(n, t, g))
             .collect()
     }
 
@@ -271,8 +286,13 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
         for c in 0..3 {
             let _ = writeln!(s, "            REAL f{c} = @f({}, theta_d, phi_d);", c * nf);
         }
+        // The separable form's factor P(theta_i) P(theta_o), shared by the channels.
+        let form = separable_p(m).map(|_| {
+            s += "            REAL pp = @p(0, theta_i, 0.0) * @p(0, theta_o, 0.0);\n";
+            " * pp"
+        });
         for c in 0..3 {
-            let d = lit(m.diffuse[c] as f64);
+            let d = lit(m.diffuse[c] as f64) + form.unwrap_or("");
             match diffuse_on {
                 Some(on) => {
                     let _ = writeln!(s, "            r{c} = {on} ? {d} : 0.0;");

@@ -44,7 +44,7 @@ pub enum ShaderError {
     #[error("bad shader prefix {0:?}: use 1 to 32 ASCII letters, digits or '_', starting with a letter, no \"__\" and not \"gl_\"")]
     BadPrefix(String),
     /// The model's diffuse form has no shader code yet.
-    #[error("the shader exports support the Lambertian diffuse form only, this model's is {0} (refit with --diffuse lambert, or export .bsdf, which tabulates Model::eval)")]
+    #[error("the shader exports support the Lambertian and separable diffuse forms only, this model's is {0} (refit with --diffuse lambert or separable, or export .bsdf, which tabulates Model::eval)")]
     DiffuseForm(&'static str),
     /// A model option the generated code does not express.
     #[error("the shader exports support separable masking without compensation only, this model has {0} (refit without --masking/--compensate, or export .bsdf, which tabulates Model::eval)")]
@@ -89,7 +89,7 @@ impl ShaderOptions {
 fn prepare(model: &Model, options: &ShaderOptions) -> Result<SamplerTables, ShaderError> {
     options.validate()?;
     model.validate()?;
-    if model.diffuse_form != crate::model::DiffuseForm::Lambert {
+    if !model.diffuse_form.is_lambert() && emit::separable_p(model).is_none() {
         return Err(ShaderError::DiffuseForm(model.diffuse_form.name()));
     }
     if !model.masking.is_separable() {

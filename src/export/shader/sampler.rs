@@ -189,7 +189,13 @@ fn selection(model: &Model, has_table: &[bool]) -> Vec<f32> {
                 });
             },
         );
-        let a: Vec<f64> = std::iter::once(luminance(model.diffuse.map(f64::from)) * PI)
+        // The diffuse term's exact albedo: pi d for Lambert (as always
+        // computed), pi d P(theta_o) for the separable form.
+        let diffuse = match super::emit::separable_p(model) {
+            None => luminance(model.diffuse.map(f64::from)) * PI,
+            Some(_) => luminance(model.diffuse_albedo(theta_o)),
+        };
+        let a: Vec<f64> = std::iter::once(diffuse)
             .chain(lobe_albedo)
             .zip(&present)
             .map(|(a, &p)| if p && a.is_finite() { a.max(0.0) } else { 0.0 })
