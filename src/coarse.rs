@@ -226,9 +226,7 @@ pub fn fit_beside<'a, T: Send>(
     if let Some(form) = form {
         exec = exec.start_form(form);
     }
-    let result = exec
-        .observe(observer)
-        .run()?;
+    let result = exec.observe(observer).run()?;
     let fitted = CoarseFit {
         result,
         levels,

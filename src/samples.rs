@@ -547,7 +547,12 @@ impl GIncidence {
     /// entries per point, the counts give every chunk its own slots in each
     /// point's list, and the chunks fill them. The lists are in sample
     /// order, exactly as a serial pass leaves them, for any thread count.
-    pub(crate) fn build(nodes: usize, gi: &StencilTable, go: &StencilTable, total_w: &[f64]) -> Self {
+    pub(crate) fn build(
+        nodes: usize,
+        gi: &StencilTable,
+        go: &StencilTable,
+        total_w: &[f64],
+    ) -> Self {
         const MAX_TOUCHED: usize = 2 * crate::grid::MAX_SUPPORT;
         // The points sample j touches, with its weights in G(theta_i) and G(theta_o).
         let touched = |j: usize, out: &mut [(usize, Weight, Weight); MAX_TOUCHED]| {

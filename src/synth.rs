@@ -69,3 +69,16 @@ pub fn known_factor_model(layout: Layout, alphas: &[f64]) -> Model {
         lobes,
     }
 }
+
+/// Ashikhmin-Shirley's coupled diffuse factor at one direction, 1 - (1 -
+/// cos theta / 2)^5, on `n` uniform theta nodes spanning [0, pi/2] (a
+/// separable diffuse form's P, [`crate::model::DiffuseForm::Separable`],
+/// not rescaled to its gauge).
+pub fn ashikhmin_shirley_p(n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|k| {
+            let theta = k as f64 / (n - 1) as f64 * std::f64::consts::FRAC_PI_2;
+            (1.0 - (1.0 - 0.5 * theta.cos()).powi(5)) as f32
+        })
+        .collect()
+}

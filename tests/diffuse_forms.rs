@@ -104,13 +104,7 @@ fn oren_nayar_truth_is_recovered() {
 /// Ashikhmin-Shirley's coupled diffuse factor at each direction, 1 - (1 -
 /// cos theta / 2)^5, on P's nodes, in the form's gauge (2 int P mu dmu = 1).
 fn ashikhmin_shirley_p() -> Vec<f32> {
-    let n = SEPARABLE_NODES;
-    let p: Vec<f32> = (0..n)
-        .map(|k| {
-            let theta = k as f64 / (n - 1) as f64 * std::f64::consts::FRAC_PI_2;
-            (1.0 - (1.0 - 0.5 * theta.cos()).powi(5)) as f32
-        })
-        .collect();
+    let p = npf::synth::ashikhmin_shirley_p(SEPARABLE_NODES);
     let mean = separable_mean(&p);
     p.iter().map(|&v| (v as f64 / mean) as f32).collect()
 }
@@ -128,7 +122,10 @@ fn separable_truth_is_recovered() {
     // horizon node (90) only by the interval before it.
     for k in 0..SEPARABLE_NODES - 1 {
         let (got, want) = (p[k] as f64, want[k] as f64);
-        assert!((got - want).abs() <= 0.01 * want, "P node {k}: {got} vs {want}");
+        assert!(
+            (got - want).abs() <= 0.01 * want,
+            "P node {k}: {got} vs {want}"
+        );
     }
 }
 
@@ -147,11 +144,18 @@ fn separable_p_is_recovered_from_a_cold_start() {
         unreachable!()
     };
     let e = compare_model(&s, 85.0, &res.model);
-    eprintln!("cold start: {} sweeps, rel {:.3e}, P {p:?}", res.history.len(), e.rel_cos_rmse);
+    eprintln!(
+        "cold start: {} sweeps, rel {:.3e}, P {p:?}",
+        res.history.len(),
+        e.rel_cos_rmse
+    );
     assert!(e.rel_cos_rmse < 2e-3, "{e:?}");
     for k in 0..SEPARABLE_NODES - 2 {
         let (got, want) = (p[k] as f64, want[k] as f64);
-        assert!((got - want).abs() <= 0.02 * want, "P node {k}: {got} vs {want}");
+        assert!(
+            (got - want).abs() <= 0.02 * want,
+            "P node {k}: {got} vs {want}"
+        );
     }
 }
 

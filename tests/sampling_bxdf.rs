@@ -43,13 +43,7 @@ fn lobe_only(alpha: f64) -> Model {
 /// view angle.
 fn separable_diffuse() -> Model {
     let mut m = glossy();
-    let n = npf::model::SEPARABLE_NODES;
-    let p = (0..n)
-        .map(|k| {
-            let theta = k as f64 / (n - 1) as f64 * PI / 2.0;
-            (1.0 - (1.0 - 0.5 * theta.cos()).powi(5)) as f32
-        })
-        .collect();
+    let p = npf::synth::ashikhmin_shirley_p(npf::model::SEPARABLE_NODES);
     m.diffuse_form = npf::model::DiffuseForm::Separable { p };
     m
 }
@@ -60,7 +54,10 @@ fn models() -> Vec<(&'static str, NpfBxdf)> {
         ("glossy", NpfBxdf::new(glossy()).unwrap()),
         ("three-lobes", NpfBxdf::new(three_lobes()).unwrap()),
         ("diffuse", NpfBxdf::new(diffuse_only()).unwrap()),
-        ("separable diffuse", NpfBxdf::new(separable_diffuse()).unwrap()),
+        (
+            "separable diffuse",
+            NpfBxdf::new(separable_diffuse()).unwrap(),
+        ),
     ]
 }
 

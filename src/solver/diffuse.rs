@@ -100,7 +100,7 @@ pub(crate) fn refresh(
 
 /// Switch to `form`, re-solve d and s, and keep it only if the objective
 /// falls.
-pub(crate) fn try_form(
+fn try_form(
     set: &FitSet,
     st: &mut State,
     mask: &[[bool; 3]; MAX_LOBES],

@@ -235,7 +235,8 @@ impl<'a> Executor<'a> {
             _ => None,
         };
         // See `hold_form`.
-        let mut form_held = self.hold_form && matches!(&st.diffuse_form,
+        let mut form_held = self.hold_form
+            && matches!(&st.diffuse_form,
             DiffuseForm::Separable { p } if p.iter().all(|&v| v == 1.0));
         let initial = gauge_objective(set, &mut st, &measure);
         let mut prev = initial;

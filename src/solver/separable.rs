@@ -31,14 +31,13 @@ pub(crate) fn incidence(set: &FitSet, nodes: usize) -> GIncidence {
 }
 
 /// The next P: one cubic-rule pass over the nodes from the state's P and
-/// residuals, nodes no weighted sample reads set to their nearest read
-/// neighbour's value, rescaled to the form's gauge. `None` when the state's
-/// form is not separable.
+/// residuals, nodes no weighted sample reads set by [`fill_unread`],
+/// rescaled to the form's gauge. `None` when the state's form is not
+/// separable.
 pub(crate) fn next_p(set: &FitSet, st: &State, inc: &GIncidence) -> Option<Vec<f32>> {
     let DiffuseForm::Separable { p } = &st.diffuse_form else {
         return None;
     };
-    let grid = Grid::line(Axis::Closed { n: p.len() });
     let mut x: Vec<f64> = p.iter().map(|&v| v as f64).collect();
     let d = st.factors.diffuse;
     let mut work: Vec<GWork> = st
@@ -52,15 +51,27 @@ pub(crate) fn next_p(set: &FitSet, st: &State, inc: &GIncidence) -> Option<Vec<f
                 sr += w[ch] * c.r[ch] * d[ch];
                 sa += w[ch] * d[ch] * d[ch];
             }
-            let dir = set.dirs[j];
             GWork {
-                gi: grid.eval(&x, dir[0] as f64, 0.0),
-                go: grid.eval(&x, dir[1] as f64, 0.0),
                 sr,
                 sa,
+                ..Default::default()
             }
         })
         .collect();
+    // P(theta_i), P(theta_o) of every sample from the lists' weights (the
+    // interpolation was done once, when the lists were built).
+    for (k, &xk) in x.iter().enumerate() {
+        let r = inc.entries(k);
+        for ((&s, &u), &v) in inc.sample[r.clone()]
+            .iter()
+            .zip(&inc.u[r.clone()])
+            .zip(&inc.v[r])
+        {
+            let wk = &mut work[s as usize];
+            wk.gi += f64::from(u) * xk;
+            wk.go += f64::from(v) * xk;
+        }
+    }
     for (k, xk) in x.iter_mut().enumerate() {
         if !inc.has_data[k] {
             continue;
@@ -109,11 +120,28 @@ mod tests {
     use super::*;
 
     #[test]
-    fn unread_nodes_take_their_nearest_read_neighbour() {
+    fn unread_nodes_take_the_last_read_value_before_them() {
         let mut x = vec![9.0, 2.0, 3.0, 9.0, 5.0, 9.0, 9.0];
         let read = [false, true, true, false, true, false, false];
         fill_unread(&mut x, &read);
         assert_eq!(x, vec![2.0, 2.0, 3.0, 3.0, 5.0, 5.0, 5.0]);
+    }
+
+    #[test]
+    fn mean_is_the_integral_of_the_interpolated_table() {
+        // A P that is not constant (the closed form's slope terms count):
+        // against a midpoint rule of int P(theta) sin(2 theta) dtheta.
+        let p = [0.2f32, 1.5, 0.9, 1.1, 0.0];
+        let n = 200_000;
+        let h = std::f64::consts::FRAC_PI_2 / n as f64;
+        let quad: f64 = (0..n)
+            .map(|i| {
+                let t = (i as f64 + 0.5) * h;
+                crate::model::table_at(&p, t) * (2.0 * t).sin() * h
+            })
+            .sum();
+        let m = separable_mean(&p);
+        assert!((m - quad).abs() < 1e-9, "{m} vs {quad}");
     }
 
     #[test]

@@ -227,7 +227,8 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
     /// The three factor lookups, and P's for a separable diffuse form.
     pub(super) fn lookups(&self) -> String {
         let l = &self.model.layout;
-        let p = separable_p(self.model).map(|p| ("p", "P", Grid::line(Axis::Closed { n: p.len() })));
+        let p =
+            separable_p(self.model).map(|p| ("p", "P", Grid::line(Axis::Closed { n: p.len() })));
         [("d", "D", l.d), ("f", "F", l.f), ("g", "G", l.g)]
             .into_iter()
             .chain(p)
@@ -287,12 +288,13 @@ INLINE REAL @wrap(REAL phi) {{ REAL r = fmod(phi, {tau}); return r < 0.0 ? r + {
             let _ = writeln!(s, "            REAL f{c} = @f({}, theta_d, phi_d);", c * nf);
         }
         // The separable form's factor P(theta_i) P(theta_o), shared by the channels.
-        let form = separable_p(m).map(|_| {
+        let mut form = "";
+        if separable_p(m).is_some() {
             s += "            REAL pp = @p(0, theta_i, 0.0) * @p(0, theta_o, 0.0);\n";
-            " * pp"
-        });
+            form = " * pp";
+        }
         for c in 0..3 {
-            let d = lit(m.diffuse[c] as f64) + form.unwrap_or("");
+            let d = lit(m.diffuse[c] as f64) + form;
             match diffuse_on {
                 Some(on) => {
                     let _ = writeln!(s, "            r{c} = {on} ? {d} : 0.0;");
