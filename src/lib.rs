@@ -132,6 +132,7 @@ pub mod export;
 pub mod fit;
 pub mod golden;
 pub mod grid;
+pub mod judge;
 pub mod memory;
 pub mod metrics;
 pub mod microfacet;

@@ -179,19 +179,50 @@ fn cross(a: Vec3, b: Vec3) -> Vec3 {
     ]
 }
 
+/// What lights the sphere: directional lights and the environment's gain
+/// (the environment's shape is fixed, [`environment`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// (direction towards the light, irradiance at normal incidence).
+    pub lights: Vec<(Vec3, [f64; 3])>,
+    /// The environment radiance is multiplied by this (0: no environment).
+    pub environment_gain: f64,
+}
+
+impl Scene {
+    /// The standard scene of the module notes: the environment and the
+    /// three [`lights`].
+    pub fn standard() -> Self {
+        Scene {
+            lights: lights().to_vec(),
+            environment_gain: 1.0,
+        }
+    }
+}
+
 /// Render the sphere with any BSDF (evaluated in the local shading frame,
-/// normal +z, as `bsdf.eval(wo, wi)`).
+/// normal +z, as `bsdf.eval(wo, wi)`) in the [`Scene::standard`] scene.
 pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
+    render_scene(opts, &Scene::standard(), bsdf)
+}
+
+/// [`render`] in another scene.
+pub fn render_scene(opts: RenderOptions, scene: &Scene, bsdf: &(dyn Bsdf + Sync)) -> Image {
     let res = opts.res.max(1);
+    let gain = scene.environment_gain;
     let quad = match opts.env {
-        EnvQuadrature::Sphere => quadrature(opts.n_theta),
-        EnvQuadrature::HalfVector => Vec::new(),
+        // A gain of 1 multiplies exactly: the standard scene's bits stay.
+        EnvQuadrature::Sphere if gain != 0.0 => quadrature(opts.n_theta)
+            .into_iter()
+            .map(|(w, e)| (w, e.map(|v| v * gain)))
+            .collect(),
+        _ => Vec::new(),
     };
     let half = match opts.env {
-        EnvQuadrature::Sphere => Vec::new(),
-        EnvQuadrature::HalfVector => half_vectors(opts.n_theta),
+        EnvQuadrature::HalfVector if gain != 0.0 => half_vectors(opts.n_theta),
+        _ => Vec::new(),
     };
-    let lights = lights();
+    let lights = &scene.lights;
     let px: Vec<([f64; 3], bool)> = (0..res * res)
         .into_par_iter()
         .map(|p| {
@@ -225,7 +256,7 @@ pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
                     l[c] += v[c] * e[c] * wi[2];
                 }
             };
-            for (w, e) in &lights {
+            for (w, e) in lights {
                 add(*w, e);
             }
             match opts.env {
@@ -242,7 +273,7 @@ pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
                         // back to the world frame: wi = x t + y b + z n
                         let world =
                             std::array::from_fn(|k| wi[0] * t[k] + wi[1] * b[k] + wi[2] * n[k]);
-                        let e = environment(world).map(|v| v * 4.0 * c * dh);
+                        let e = environment(world).map(|v| v * gain * 4.0 * c * dh);
                         let v = bsdf.eval(wo, wi);
                         for ch in 0..3 {
                             l[ch] += v[ch] * e[ch] * wi[2];
