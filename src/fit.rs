@@ -34,6 +34,9 @@ pub enum ModelKind {
     IndependentG,
     /// Analytic GGX + Lambert with Schlick Fresnel (10 parameters).
     Ggx,
+    /// The candidate form whose renders are closest to the measured
+    /// table's ([`crate::auto`]); the model file records the chosen one.
+    Auto,
 }
 
 impl ModelKind {
@@ -43,6 +46,7 @@ impl ModelKind {
             ModelKind::Factor => "factor",
             ModelKind::IndependentG => "independent-g",
             ModelKind::Ggx => "ggx",
+            ModelKind::Auto => "auto",
         }
     }
 
@@ -50,7 +54,8 @@ impl ModelKind {
     /// may hold more: structural zeros or tabulated analytic factors).
     pub fn effective_params(self, layout: &Layout, lobes: usize) -> usize {
         match self {
-            ModelKind::Factor => layout.param_count(lobes),
+            // Auto's count is its choice's; the default's until it chooses.
+            ModelKind::Factor | ModelKind::Auto => layout.param_count(lobes),
             ModelKind::IndependentG => 3 * (2 + layout.d.len() + layout.f.len() + layout.g.len()),
             ModelKind::Ggx => 10,
         }
@@ -392,6 +397,12 @@ pub enum FitError {
         /// What went wrong.
         problem: String,
     },
+    /// `ModelKind::Auto` given to a fit that has no measured table to
+    /// render: auto is [`crate::auto::fit`].
+    #[error(
+        "the auto model is chosen by rendering the measured table: fit it with npf::auto::fit"
+    )]
+    AutoNeedsTable,
     /// The data, or the fitted model, cannot be represented in the model's
     /// storage precision (f32) or gave non-finite measures.
     #[error("{source_name}: {problem}")]
@@ -969,6 +980,7 @@ fn run_kind(
                 observer,
             )
         }
+        ModelKind::Auto => Err(FitError::AutoNeedsTable),
         ModelKind::Ggx => {
             let fit = match &samples {
                 SampleData::Records(s) => fit_ggx(s, so)?,

@@ -120,6 +120,7 @@
 //! assert_eq!(Layout::anisotropic().param_count(3), 2010);
 //! ```
 
+pub mod auto;
 pub mod baselines;
 pub mod bsdf;
 #[cfg(feature = "cli")]

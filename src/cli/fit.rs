@@ -213,7 +213,8 @@ pub fn flag_message(e: &FitError) -> String {
         FitError::Samples(_)
         | FitError::Ggx(_)
         | FitError::Unrepresentable { .. }
-        | FitError::Remeasure { .. } => e.to_string(),
+        | FitError::Remeasure { .. }
+        | FitError::AutoNeedsTable => e.to_string(),
     }
 }
 
@@ -226,7 +227,8 @@ pub fn progress(
     let parts = match config.model {
         ModelKind::Factor => 1,
         ModelKind::IndependentG => 3,
-        ModelKind::Ggx => 0,
+        // Auto runs several fits: no one bar counts them.
+        ModelKind::Ggx | ModelKind::Auto => 0,
     };
     let bar = if show && parts > 0 {
         indicatif::ProgressBar::new((parts * config.max_sweeps) as u64)
@@ -407,6 +409,29 @@ pub(super) fn fit_table(
     config: &FitConfig,
     verbose: bool,
 ) -> Result<Fitted, CliError> {
+    // (clap refuses --model with --target or --budget.)
+    if config.model == ModelKind::Auto {
+        let (table, samples) = super::read_measured(input, args.format)?;
+        crate::phases::mark("read + samples");
+        let reference: &(dyn crate::bsdf::Bsdf + Sync) = match &table {
+            // Read between its nodes, as a fit interpolates (a truncating
+            // read holds each node across its bin, docs/fitting.md).
+            npf_data_loaders::Table::Merl(t) => &crate::bsdf::InterpolatedMerl(t),
+            npf_data_loaders::Table::Utia(t) => t,
+        };
+        let mut observer = |_: usize, _: &SweepReport| {};
+        let fitted = crate::auto::fit(
+            &samples,
+            reference,
+            config,
+            crate::judge::judge_options(),
+            &mut observer,
+        )?;
+        if verbose {
+            print_auto(&fitted);
+        }
+        return write_fitted(output, args, fitted);
+    }
     let selection = match (args.target, args.budget) {
         (Some(target), _) => Selection::Target(target),
         (None, Some(budget)) => {
@@ -469,6 +494,24 @@ fn file_stamp(path: &std::path::Path) -> Option<(u64, std::time::SystemTime)> {
 }
 
 /// Write a fitted model to `output`.
+/// Auto's candidates, their mean render PSNR and the choice (stderr).
+fn print_auto(fitted: &Fitted) {
+    let Some(auto) = fitted.info.selection.as_ref().and_then(|s| s.get("auto")) else {
+        return;
+    };
+    for c in auto["candidates"].as_array().into_iter().flatten() {
+        eprintln!(
+            "auto: {:<28} render {:.2} dB (mean of {} scenes), log RMSE {:.4e}, {:.1} s",
+            c["name"].as_str().unwrap_or("?"),
+            c["render"]["mean_db"].as_f64().unwrap_or(f64::NAN),
+            c["render"]["psnr_db"].as_array().map_or(0, Vec::len),
+            c["log_rmse"].as_f64().unwrap_or(f64::NAN),
+            c["seconds"].as_f64().unwrap_or(f64::NAN),
+        );
+    }
+    eprintln!("auto: chose {}", auto["chosen"].as_str().unwrap_or("?"));
+}
+
 fn write_fitted(
     output: &std::path::Path,
     args: &FitArgs,

@@ -87,6 +87,25 @@ pub fn run(args: InfoArgs) -> CliResult {
                     c["full_set_tol"]
                 );
             }
+            if let Some(a) = fit.selection.as_ref().and_then(|s| s.get("auto")) {
+                println!(
+                    "  auto           chose {} (mean render PSNR over {} scenes; another form must beat the first by > {} dB)",
+                    a["chosen"].as_str().unwrap_or("?"),
+                    a["scenes"].as_array().map_or(0, Vec::len),
+                    a["margin_db"]
+                );
+                for c in a["candidates"].as_array().into_iter().flatten() {
+                    println!(
+                        "    {:<28} render {:.2} dB, linear {:.2} dB, log RMSE {:.4e}, rel. cos RMSE {:.4e}, {:.1} s",
+                        c["name"].as_str().unwrap_or("?"),
+                        c["render"]["mean_db"].as_f64().unwrap_or(f64::NAN),
+                        c["render"]["linear_mean_db"].as_f64().unwrap_or(f64::NAN),
+                        c["log_rmse"].as_f64().unwrap_or(f64::NAN),
+                        c["rel_cos_rmse"].as_f64().unwrap_or(f64::NAN),
+                        c["seconds"].as_f64().unwrap_or(f64::NAN),
+                    );
+                }
+            }
             if let Some(e) = &fit.metrics {
                 println!("  errors         cosine-weighted RMSE {:.4e} (relative {:.4e}), log RMSE {:.4e}", e.cos_rmse, e.rel_cos_rmse, e.log_rmse);
             }
