@@ -1060,6 +1060,11 @@ fn fit(
             "threads must be 0 (all cores) to {MAX_THREADS}, got {threads}"
         )));
     }
+    if config.model == ModelKind::Auto {
+        return Err(value_error(
+            "model \"auto\" is not in the Python package yet: use `npf fit --model auto`",
+        ));
+    }
     // Checked before reading the input, so a bad option costs nothing.
     config.validate().map_err(display_error)?;
     let (samples, merl) = fit_samples(py, table_or_path)?;

@@ -94,6 +94,7 @@ def test_separable_diffuse_fit_is_the_cli_fit_and_samples_consistently(tmp_path)
     "kwargs, message",
     [
         (dict(diffuse="velvet"), "unknown diffuse"),
+        (dict(model="auto"), "npf fit --model auto"),
         (dict(lobes=0), "lob"),
         (dict(lobes=9), "lob"),
         (dict(weighting="loud"), "unknown weighting"),
