@@ -350,7 +350,8 @@ pub fn print_summary(f: &Fitted) {
     let m = &f.metrics;
     eprintln!(
         "fitted {} parameters ({} lobes) in {:.2} s, {} sweeps ({}), objective {:.6e}",
-        f.result.model.param_count(),
+        // The factor tables and the diffuse form's own (a separable P).
+        f.result.model.param_count() + f.result.model.diffuse_form.param_count(),
         f.info.lobes,
         f.info.seconds,
         f.info.sweeps,
