@@ -12,7 +12,7 @@
 //! standard scene of [`crate::render`]); none is chosen for a material.
 
 use crate::bsdf::Bsdf;
-use crate::render::{psnr, render_scene, EnvQuadrature, Image, RenderOptions, Scene};
+use crate::render::{psnr, render_scenes, EnvQuadrature, Image, RenderOptions, Scene};
 use npf_data_loaders::geometry::normalize;
 use serde::{Deserialize, Serialize};
 
@@ -120,15 +120,16 @@ impl Judge {
     /// Render `reference` (the measured table) in every scene.
     pub fn new(reference: &(dyn Bsdf + Sync), opts: RenderOptions) -> Self {
         let scenes = scenes();
-        let reference = scenes
-            .iter()
-            .map(|(_, s)| render_scene(opts, s, reference))
-            .collect();
+        let reference = render_scenes(opts, &Self::lit(&scenes), reference);
         Judge {
             opts,
             scenes,
             reference,
         }
+    }
+
+    fn lit(scenes: &[(&'static str, Scene)]) -> Vec<Scene> {
+        scenes.iter().map(|(_, s)| s.clone()).collect()
     }
 
     /// The scenes' names, in score order.
@@ -140,15 +141,15 @@ impl Judge {
     /// whose reference is all black (no pixel lit) scores infinity for an
     /// identical candidate and is otherwise an ordinary PSNR.
     pub fn score(&self, candidate: &(dyn Bsdf + Sync)) -> RenderScore {
+        let images = render_scenes(self.opts, &Self::lit(&self.scenes), candidate);
         let (psnr_db, linear_psnr_db): (Vec<f64>, Vec<f64>) = self
-            .scenes
+            .reference
             .iter()
-            .zip(&self.reference)
-            .map(|((_, s), r)| {
-                let image = render_scene(self.opts, s, candidate);
+            .zip(&images)
+            .map(|(r, image)| {
                 // Same resolution and a sphere in view: never an error.
-                let display = psnr(r, &image).unwrap_or(f64::NEG_INFINITY);
-                (display, linear_psnr(r, &image))
+                let display = psnr(r, image).unwrap_or(f64::NEG_INFINITY);
+                (display, linear_psnr(r, image))
             })
             .unzip();
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
@@ -166,7 +167,7 @@ mod tests {
     use super::*;
     use crate::bsdf::NpfBxdf;
     use crate::model::Layout;
-    use crate::render::render;
+    use crate::render::{render, render_scene};
     use crate::synth::known_factor_model;
 
     fn small() -> RenderOptions {
@@ -183,6 +184,30 @@ mod tests {
         for env in [EnvQuadrature::Sphere, EnvQuadrature::HalfVector] {
             let o = RenderOptions { env, ..small() };
             assert_eq!(render(o, &m), render_scene(o, &Scene::standard(), &m));
+        }
+    }
+
+    #[test]
+    fn scenes_rendered_together_match_each_rendered_alone() {
+        let m = NpfBxdf::new(known_factor_model(Layout::default(), &[0.2])).unwrap();
+        let lit: Vec<Scene> = scenes().into_iter().map(|(_, s)| s).collect();
+        for env in [EnvQuadrature::Sphere, EnvQuadrature::HalfVector] {
+            let o = RenderOptions { env, ..small() };
+            let together = render_scenes(o, &lit, &m);
+            assert_eq!(together.len(), lit.len());
+            for (s, img) in lit.iter().zip(&together) {
+                let alone = render_scene(o, s, &m);
+                assert_eq!(alone.mask, img.mask);
+                assert!(alone.mask.iter().any(|&m| m));
+                for (a, b) in alone.rgb.iter().zip(&img.rgb) {
+                    for c in 0..3 {
+                        assert!(
+                            (a[c] - b[c]).abs() <= 1e-12 * (1.0 + a[c].abs()),
+                            "{a:?} {b:?}"
+                        );
+                    }
+                }
+            }
         }
     }
 

@@ -209,85 +209,187 @@ pub fn render(opts: RenderOptions, bsdf: &(dyn Bsdf + Sync)) -> Image {
 /// [`render`] in another scene.
 pub fn render_scene(opts: RenderOptions, scene: &Scene, bsdf: &(dyn Bsdf + Sync)) -> Image {
     let res = opts.res.max(1);
-    let gain = scene.environment_gain;
-    let quad = match opts.env {
-        // A gain of 1 multiplies exactly: the standard scene's bits stay.
-        EnvQuadrature::Sphere if gain != 0.0 => quadrature(opts.n_theta)
-            .into_iter()
-            .map(|(w, e)| (w, e.map(|v| v * gain)))
-            .collect(),
-        _ => Vec::new(),
-    };
-    let half = match opts.env {
-        EnvQuadrature::HalfVector if gain != 0.0 => half_vectors(opts.n_theta),
-        _ => Vec::new(),
-    };
+    let env = Environment::new(opts, scene.environment_gain);
     let lights = &scene.lights;
     let px: Vec<([f64; 3], bool)> = (0..res * res)
         .into_par_iter()
         .map(|p| {
-            let (i, j) = (p % res, p / res);
-            let x = 2.0 * (i as f64 + 0.5) / res as f64 - 1.0;
-            let y = 1.0 - 2.0 * (j as f64 + 0.5) / res as f64;
-            let r2 = x * x + y * y;
-            if r2 >= 1.0 {
+            let Some(frame) = Frame::at(p, res) else {
                 return ([0.0; 3], false);
-            }
-            let n = [x, y, (1.0 - r2).sqrt()];
-            let t = {
-                let c = cross([0.0, 1.0, 0.0], n);
-                if dot(c, c) < 1e-12 {
-                    [1.0, 0.0, 0.0]
-                } else {
-                    normalize(c)
-                }
             };
-            let b = cross(n, t);
-            let local = |v: Vec3| [dot(v, t), dot(v, b), dot(v, n)];
-            let wo = local([0.0, 0.0, 1.0]);
             let mut l = [0.0; 3];
-            let mut add = |wi_world: Vec3, e: &[f64; 3]| {
-                let wi = local(wi_world);
-                if wi[2] <= 0.0 || wo[2] <= 0.0 {
-                    return;
-                }
-                let v = bsdf.eval(wo, wi);
-                for c in 0..3 {
-                    l[c] += v[c] * e[c] * wi[2];
-                }
-            };
             for (w, e) in lights {
-                add(*w, e);
+                frame.add(bsdf, &mut l, *w, e);
             }
-            match opts.env {
-                EnvQuadrature::Sphere => {
-                    for (w, e) in &quad {
-                        add(*w, e);
-                    }
-                }
-                EnvQuadrature::HalfVector => {
-                    for (h, dh) in &half {
-                        let Some((wi, c)) = crate::bsdf::reflect_up(wo, *h) else {
-                            continue;
-                        };
-                        // back to the world frame: wi = x t + y b + z n
-                        let world =
-                            std::array::from_fn(|k| wi[0] * t[k] + wi[1] * b[k] + wi[2] * n[k]);
-                        let e = environment(world).map(|v| v * gain * 4.0 * c * dh);
-                        let v = bsdf.eval(wo, wi);
-                        for ch in 0..3 {
-                            l[ch] += v[ch] * e[ch] * wi[2];
-                        }
-                    }
-                }
-            }
+            env.add(&frame, bsdf, &mut l);
             (l, true)
         })
         .collect();
+    image(res, px)
+}
+
+/// [`render_scene`] for several scenes at once: the environment's
+/// integral (nearly all of a render's evaluations) is the same in every
+/// scene up to its gain, so it is taken once per pixel. Each image equals
+/// its [`render_scene`] up to rounding (the sums are grouped differently).
+pub fn render_scenes(
+    opts: RenderOptions,
+    scenes: &[Scene],
+    bsdf: &(dyn Bsdf + Sync),
+) -> Vec<Image> {
+    let res = opts.res.max(1);
+    let any_env = scenes.iter().any(|s| s.environment_gain != 0.0);
+    let env = Environment::new(opts, if any_env { 1.0 } else { 0.0 });
+    let px: Vec<Option<Vec<[f64; 3]>>> = (0..res * res)
+        .into_par_iter()
+        .map(|p| {
+            let frame = Frame::at(p, res)?;
+            let mut e = [0.0; 3];
+            env.add(&frame, bsdf, &mut e);
+            let per_scene = scenes
+                .iter()
+                .map(|s| {
+                    let mut l = [0.0; 3];
+                    for (w, irr) in &s.lights {
+                        frame.add(bsdf, &mut l, *w, irr);
+                    }
+                    std::array::from_fn(|c| l[c] + s.environment_gain * e[c])
+                })
+                .collect();
+            Some(per_scene)
+        })
+        .collect();
+    (0..scenes.len())
+        .map(|k| {
+            let scene_px = px
+                .iter()
+                .map(|v| v.as_ref().map_or(([0.0; 3], false), |l| (l[k], true)))
+                .collect();
+            image(res, scene_px)
+        })
+        .collect()
+}
+
+fn image(res: usize, px: Vec<([f64; 3], bool)>) -> Image {
     Image {
         res,
         rgb: px.iter().map(|p| p.0).collect(),
         mask: px.iter().map(|p| p.1).collect(),
+    }
+}
+
+/// A sphere pixel's shading frame (world-frame normal, tangent and
+/// bitangent) and its view direction in that frame.
+struct Frame {
+    n: Vec3,
+    t: Vec3,
+    b: Vec3,
+    wo: Vec3,
+}
+
+impl Frame {
+    /// Pixel `p` of a `res` x `res` image; `None` off the sphere.
+    fn at(p: usize, res: usize) -> Option<Frame> {
+        let (i, j) = (p % res, p / res);
+        let x = 2.0 * (i as f64 + 0.5) / res as f64 - 1.0;
+        let y = 1.0 - 2.0 * (j as f64 + 0.5) / res as f64;
+        let r2 = x * x + y * y;
+        if r2 >= 1.0 {
+            return None;
+        }
+        let n = [x, y, (1.0 - r2).sqrt()];
+        let t = {
+            let c = cross([0.0, 1.0, 0.0], n);
+            if dot(c, c) < 1e-12 {
+                [1.0, 0.0, 0.0]
+            } else {
+                normalize(c)
+            }
+        };
+        let b = cross(n, t);
+        let mut f = Frame {
+            n,
+            t,
+            b,
+            wo: [0.0; 3],
+        };
+        f.wo = f.local([0.0, 0.0, 1.0]);
+        Some(f)
+    }
+
+    fn local(&self, v: Vec3) -> Vec3 {
+        [dot(v, self.t), dot(v, self.b), dot(v, self.n)]
+    }
+
+    /// Adds f(wo, wi) e cos theta_i for light from world direction `wi_world`.
+    fn add(&self, bsdf: &(dyn Bsdf + Sync), l: &mut [f64; 3], wi_world: Vec3, e: &[f64; 3]) {
+        let wi = self.local(wi_world);
+        if wi[2] <= 0.0 || self.wo[2] <= 0.0 {
+            return;
+        }
+        let v = bsdf.eval(self.wo, wi);
+        for c in 0..3 {
+            l[c] += v[c] * e[c] * wi[2];
+        }
+    }
+}
+
+/// The environment's quadrature for a gain (empty at gain 0).
+struct Environment {
+    kind: EnvQuadrature,
+    gain: f64,
+    quad: Vec<(Vec3, [f64; 3])>,
+    half: Vec<(Vec3, f64)>,
+}
+
+impl Environment {
+    fn new(opts: RenderOptions, gain: f64) -> Self {
+        let quad = match opts.env {
+            // A gain of 1 multiplies exactly: the standard scene's bits stay.
+            EnvQuadrature::Sphere if gain != 0.0 => quadrature(opts.n_theta)
+                .into_iter()
+                .map(|(w, e)| (w, e.map(|v| v * gain)))
+                .collect(),
+            _ => Vec::new(),
+        };
+        let half = match opts.env {
+            EnvQuadrature::HalfVector if gain != 0.0 => half_vectors(opts.n_theta),
+            _ => Vec::new(),
+        };
+        Environment {
+            kind: opts.env,
+            gain,
+            quad,
+            half,
+        }
+    }
+
+    /// Adds the environment's reflected radiance at `frame` to `l`.
+    fn add(&self, frame: &Frame, bsdf: &(dyn Bsdf + Sync), l: &mut [f64; 3]) {
+        let (wo, gain) = (frame.wo, self.gain);
+        match self.kind {
+            EnvQuadrature::Sphere => {
+                for (w, e) in &self.quad {
+                    frame.add(bsdf, l, *w, e);
+                }
+            }
+            EnvQuadrature::HalfVector => {
+                for (h, dh) in &self.half {
+                    let Some((wi, c)) = crate::bsdf::reflect_up(wo, *h) else {
+                        continue;
+                    };
+                    // back to the world frame: wi = x t + y b + z n
+                    let world = std::array::from_fn(|k| {
+                        wi[0] * frame.t[k] + wi[1] * frame.b[k] + wi[2] * frame.n[k]
+                    });
+                    let e = environment(world).map(|v| v * gain * 4.0 * c * dh);
+                    let v = bsdf.eval(wo, wi);
+                    for ch in 0..3 {
+                        l[ch] += v[ch] * e[ch] * wi[2];
+                    }
+                }
+            }
+        }
     }
 }
 
