@@ -11,16 +11,25 @@
 //! and every candidate's render and table errors (`selection.auto`).
 
 use crate::bsdf::{Bsdf, NpfBxdf};
-use crate::fit::{fit as fit_one, FitConfig, FitError, Fitted, ModelKind};
+use crate::coarse::{CoarseError, LevelsEnd};
+use crate::fit::{
+    fit as fit_one, AutoPlan, CandidateRun, FitConfig, FitError, Fitted, ModelKind, Screened,
+};
 use crate::judge::{Judge, RenderScore};
 use crate::render::RenderOptions;
-use crate::samples::Weighting;
-use crate::solver::{DiffuseKind, SweepReport};
+use crate::samples::{FitSet, SampleData, Weighting};
+use crate::solver::{DiffuseKind, Factors, FitOptions, SweepReport};
 use npf_data_loaders::MeasuredSamples;
 
 /// A candidate must beat the default's mean render PSNR by more than this
 /// (dB) to be chosen.
 pub const MARGIN_DB: f64 = 0.1;
+
+/// Sweeps each candidate runs on the decimated level before it is judged
+/// (the default runs the level to its own limits); the chosen one then
+/// runs on to them. Measured on four MERL tables, 15, 30 and a full level
+/// rank the candidates alike (BENCHMARKS.md, issue 43).
+pub const SCREEN_SWEEPS: usize = 25;
 
 /// The candidate forms for a configuration, the default first: the
 /// configuration's factor model with Lambertian diffuse, the same with the
@@ -65,17 +74,23 @@ pub struct CandidateRecord {
     pub name: &'static str,
     /// Its render scores against the table.
     pub render: RenderScore,
-    /// Its log RMSE against the samples (the fit's own measure).
+    /// Its log RMSE against the samples it was judged on (the screen's
+    /// decimated samples, or all of them without a screen).
     pub log_rmse: f64,
-    /// Its relative cosine-weighted RMSE.
+    /// Its relative cosine-weighted RMSE, likewise.
     pub rel_cos_rmse: f64,
     /// Its fit's seconds.
     pub seconds: f64,
+    /// Its fit's sweeps (on the screen's decimated set, or all samples).
+    pub sweeps: usize,
 }
 
-/// Fit every candidate of `config` to `samples`, judge each against
-/// `reference` (the same table as a BSDF) rendered with `opts`, and return
-/// the chosen fit, its provenance extended by the record of all of them.
+/// Fit `config`'s candidates to `samples`, judge each against `reference`
+/// (the same table as a BSDF) rendered with `opts`, and return the chosen
+/// fit, its provenance extended by the record of all of them. Where the
+/// fit runs a decimated level ([`crate::coarse`]), the candidates are
+/// screened there ([`screen`]) and only the chosen one is fitted on all
+/// samples; otherwise each is fitted in full.
 pub fn fit(
     samples: &MeasuredSamples,
     reference: &(dyn Bsdf + Sync),
@@ -84,6 +99,221 @@ pub fn fit(
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
     let judge = Judge::new(reference, opts);
+    let data = SampleData::Records(std::borrow::Cow::Borrowed(samples));
+    judged(
+        data,
+        &judge,
+        config,
+        observer,
+        |_, config, plan, observer| crate::fit::fit_with(samples, config, Some(plan), observer),
+    )
+}
+
+/// [`fit`] owning the samples, judged by `judge`: a MERL table's grid
+/// need not be made into records, and `reread` gives the table again for
+/// the error measures (as [`crate::fit::fit_owned`]).
+pub fn fit_owned(
+    samples: SampleData<'static>,
+    reread: impl FnOnce() -> Result<npf_data_loaders::Table, FitError> + Send,
+    judge: &Judge,
+    config: &FitConfig,
+    observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+) -> Result<Fitted, FitError> {
+    judged(
+        samples,
+        judge,
+        config,
+        observer,
+        |samples, config, plan, observer| {
+            crate::fit::fit_owned_with(samples, reread, config, Some(plan), observer)
+        },
+    )
+}
+
+/// The plan's fit (`fit_planned`) where a decimated level runs, every
+/// candidate fitted in full otherwise.
+fn judged<'a>(
+    samples: SampleData<'a>,
+    judge: &Judge,
+    config: &FitConfig,
+    observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+    fit_planned: impl FnOnce(
+        SampleData<'a>,
+        &FitConfig,
+        &AutoPlan,
+        &mut (dyn FnMut(usize, &SweepReport) + Send),
+    ) -> Result<Fitted, FitError>,
+) -> Result<Fitted, FitError> {
+    if !crate::fit::auto_screens(config, &samples) {
+        return match &samples {
+            SampleData::Records(s) => fit_each(s, judge, config, observer),
+            SampleData::Merl(m) => {
+                fit_each(&m.table().samples(m.source()), judge, config, observer)
+            }
+        };
+    }
+    let screen = |end: &LevelsEnd<'_>, runs: &[CandidateRun]| screen(judge, end, runs);
+    let plan = AutoPlan {
+        candidates: candidates(config),
+        screen: &screen,
+    };
+    let config = FitConfig {
+        model: ModelKind::Auto,
+        ..config.clone()
+    };
+    fit_planned(samples, &config, &plan, observer)
+}
+
+/// Auto's screen: every candidate fitted on the last decimated level from
+/// where the default's levels ended (the separable form and cosine-L2
+/// weights from its factors, Independent-G from its lobes summed per
+/// channel, [`independent_start`]), each judged by its renders; the
+/// chosen one's decimated fit is where the full set starts.
+pub fn screen(
+    judge: &Judge,
+    end: &LevelsEnd<'_>,
+    runs: &[CandidateRun],
+) -> Result<Screened, CoarseError> {
+    let mut results = Vec::with_capacity(runs.len());
+    let mut records = Vec::with_capacity(runs.len());
+    for (i, run) in runs.iter().enumerate() {
+        let t = std::time::Instant::now();
+        let result = if i == 0 {
+            // The default: the levels' own run.
+            end.result.clone()
+        } else {
+            let start = match run.config.model {
+                ModelKind::IndependentG => independent_start(&end.result.factors),
+                _ => end.result.factors.clone(),
+            };
+            let opts = FitOptions {
+                max_sweeps: SCREEN_SWEEPS,
+                ..run.opts
+            };
+            let own = own_set(end, run)?;
+            end.run_capped(own.as_ref().unwrap_or(end.set), opts, start)?
+        };
+        let seconds = t.elapsed().as_secs_f64();
+        let model = &result.model;
+        let render = match NpfBxdf::new(model.clone()) {
+            Ok(bsdf) => judge.score(&bsdf),
+            // Not renderable: never chosen.
+            Err(_) => RenderScore {
+                psnr_db: Vec::new(),
+                mean_db: f64::NEG_INFINITY,
+                linear_psnr_db: Vec::new(),
+                linear_mean_db: f64::NEG_INFINITY,
+            },
+        };
+        let m = crate::metrics::compare_model(end.kept, run.config.max_theta, model);
+        records.push(CandidateRecord {
+            name: run.name,
+            render,
+            log_rmse: m.log_rmse,
+            rel_cos_rmse: m.rel_cos_rmse,
+            seconds,
+            sweeps: result.history.len(),
+        });
+        results.push(result);
+        crate::phases::mark(&format!("screen: {}", run.name));
+    }
+    let chosen = choose(&records);
+    let mut result = results.swap_remove(chosen);
+    // The chosen one's level runs on to the default's limits.
+    let mut continued = 0;
+    if chosen != 0 && !result.converged {
+        let run = &runs[chosen];
+        let start = result.factors.clone();
+        let form = result.model.diffuse_form.clone();
+        let own = own_set(end, run)?;
+        let set = own.as_ref().unwrap_or(end.set);
+        let more = end.run_on(set, run.opts, start, form)?;
+        continued = more.history.len();
+        result = more;
+        crate::phases::mark("screen: the chosen one's level run on");
+    }
+    let record = serde_json::json!({
+        "chosen": records[chosen].name,
+        "margin_db": MARGIN_DB,
+        "scenes": judge.scene_names(),
+        "render": judge.options_record(),
+        "screened_on": {
+            "factor": end.schedule.factors.last(),
+            "samples": end.set.len(),
+            "sweeps": SCREEN_SWEEPS,
+            "chosen_ran_on": continued,
+        },
+        "candidates": records,
+    });
+    Ok(Screened {
+        chosen,
+        result,
+        record,
+    })
+}
+
+/// The decimated set of a candidate with its own sample options
+/// (weights), built from the level's samples; `None`: the level's set.
+fn own_set(end: &LevelsEnd<'_>, run: &CandidateRun) -> Result<Option<FitSet>, CoarseError> {
+    Ok(if run.so == end.so {
+        None
+    } else {
+        Some(FitSet::build(end.kept, end.layout, run.so)?)
+    })
+}
+
+/// Independent-G's start from a factor fit: channel C's lobe is the sum
+/// of the fit's lobes in that channel (s_C^m D^m, one non-parametric D
+/// holds it), its G their mean weighted by each lobe's peak in that
+/// channel, F and d as fitted. Its render is the factor fit's but for G.
+pub fn independent_start(f: &Factors) -> Factors {
+    let lobes = f.lobes();
+    let (nd, ng) = (f.d[0].len(), f.g[0].len());
+    let mut s = vec![[0.0; 3]; 3];
+    let mut d = vec![vec![0.0; nd]; 3];
+    let mut g = vec![vec![0.0; ng]; 3];
+    for c in 0..3 {
+        s[c][c] = 1.0;
+        for m in 0..lobes {
+            for (k, v) in d[c].iter_mut().enumerate() {
+                *v += f.s[m][c] * f.d[m][k];
+            }
+        }
+        let w: Vec<f64> = (0..lobes)
+            .map(|m| (f.s[m][c] * f.d[m][0]).max(0.0))
+            .collect();
+        let total: f64 = w.iter().sum();
+        for (k, v) in g[c].iter_mut().enumerate() {
+            *v = if total > 0.0 {
+                (0..lobes).map(|m| w[m] * f.g[m][k]).sum::<f64>() / total
+            } else {
+                f.g[0][k]
+            };
+        }
+        if d[c].iter().all(|&v| v <= 0.0) {
+            // No specular in this channel: a lobe's shape, no scale.
+            d[c] = f.d[0].clone();
+            s[c][c] = 0.0;
+        }
+    }
+    Factors {
+        layout: f.layout,
+        diffuse: f.diffuse,
+        s,
+        d,
+        g,
+        f: f.f.clone(),
+        masking: f.masking,
+    }
+}
+
+/// Without a decimated level: every candidate fitted on all samples.
+fn fit_each(
+    samples: &MeasuredSamples,
+    judge: &Judge,
+    config: &FitConfig,
+    observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+) -> Result<Fitted, FitError> {
     let mut fits = Vec::new();
     let mut records = Vec::new();
     for (name, c) in candidates(config) {
@@ -101,6 +331,7 @@ pub fn fit(
             log_rmse: fitted.metrics.log_rmse,
             rel_cos_rmse: fitted.metrics.rel_cos_rmse,
             seconds,
+            sweeps: fitted.result.history.len(),
         });
         fits.push(fitted);
     }
@@ -110,7 +341,7 @@ pub fn fit(
         "chosen": records[chosen].name,
         "margin_db": MARGIN_DB,
         "scenes": judge.scene_names(),
-        "render": { "res": opts.res, "n_theta": opts.n_theta, "env": format!("{:?}", opts.env) },
+        "render": judge.options_record(),
         "candidates": records,
     });
     if let Some(sel) = fitted.info.selection.as_mut() {

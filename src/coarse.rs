@@ -146,6 +146,93 @@ pub struct CoarseFit {
     pub set_seconds: f64,
 }
 
+/// Where the decimated levels ended, for a screen that tries other
+/// forms from there before the full set ([`fit_beside`]'s `screen`).
+pub struct LevelsEnd<'s> {
+    /// The last level's decimated samples.
+    pub kept: &'s MeasuredSamples,
+    /// Its sample set.
+    pub set: &'s FitSet,
+    /// The last level's run: the fit the screen starts from.
+    pub result: &'s FitResult,
+    /// The levels' layout and sample options.
+    pub layout: Layout,
+    /// Their sample options.
+    pub so: SampleOptions,
+    /// The schedule the levels ran.
+    pub schedule: Schedule<'s>,
+    duo: &'s Duo,
+}
+
+impl LevelsEnd<'_> {
+    /// A run on a decimated set (this level's, or one built from [`Self::kept`]
+    /// with other sample options) as the levels run: `opts` with the
+    /// schedule's tolerance and sweep limit, the levels' partner.
+    pub fn run(
+        &self,
+        set: &FitSet,
+        opts: FitOptions,
+        start: Factors,
+    ) -> Result<FitResult, SolverError> {
+        Executor::new(set, level_options(self.schedule, opts))
+            .start_from(start)
+            .partner(self.duo)
+            .run()
+    }
+
+    /// [`Self::run`] from a diffuse form too (a run that stopped early,
+    /// going on).
+    pub fn run_on(
+        &self,
+        set: &FitSet,
+        opts: FitOptions,
+        start: Factors,
+        form: crate::model::DiffuseForm,
+    ) -> Result<FitResult, SolverError> {
+        Executor::new(set, level_options(self.schedule, opts))
+            .start_from(start)
+            .start_form(form)
+            .partner(self.duo)
+            .run()
+    }
+
+    /// [`Self::run`] with at most `opts.max_sweeps` (below the schedule's).
+    pub fn run_capped(
+        &self,
+        set: &FitSet,
+        opts: FitOptions,
+        start: Factors,
+    ) -> Result<FitResult, SolverError> {
+        let o = level_options(self.schedule, opts);
+        Executor::new(
+            set,
+            FitOptions {
+                max_sweeps: o.max_sweeps.min(opts.max_sweeps),
+                ..o
+            },
+        )
+        .start_from(start)
+        .partner(self.duo)
+        .run()
+    }
+}
+
+/// What the full set runs after a screen.
+pub struct Finish {
+    /// The start (a decimated level's end).
+    pub start: Factors,
+    /// The diffuse form it ended with.
+    pub form: Option<crate::model::DiffuseForm>,
+    /// The full set's options (before G is kept, [`Schedule::keep_g`]).
+    pub opts: FitOptions,
+    /// Sample options other than the levels': the full set is built again
+    /// with them.
+    pub so: Option<SampleOptions>,
+}
+
+/// A screen: given where the levels ended, what the full set runs.
+pub type Screen<'a> = Box<dyn FnOnce(LevelsEnd<'_>) -> Result<Finish, CoarseError> + Send + 'a>;
+
 /// Fit `samples` on `layout` from `start`: first on each decimated set of
 /// `schedule` (a level with fewer than [`MIN_SAMPLES_PER_PARAMETER`] is
 /// skipped), each level
@@ -167,33 +254,39 @@ pub fn fit<'a>(
 ) -> Result<CoarseFit, CoarseError> {
     let run = (schedule, opts, start);
     let nothing = |_: &SampleData| ();
-    fit_beside(samples, (layout, so), run, observer, nothing).map(|(f, ())| f)
+    fit_beside(samples, (layout, so), run, observer, nothing, None).map(|(f, ())| f)
 }
 
 /// [`fit`] with `beside(samples)` run after the full set is built, while
 /// the decimated levels run (the build's arm of the join then has a core
 /// to spare): work on the samples that the full set's sweeps do not need
 /// (the error measures' model-independent part), returned with the fit.
+/// With a `screen`, where the levels end goes to it (while the partner
+/// still helps), and the full set runs what it returns; without a level,
+/// no screen runs.
 pub fn fit_beside<'a, T: Send>(
     samples: impl Into<SampleData<'a>>,
     (layout, so): (Layout, SampleOptions),
     (schedule, opts, start): (Schedule, FitOptions, Factors),
     observer: &mut dyn Observer,
     beside: impl FnOnce(&SampleData) -> T + Send,
+    screen: Option<Screen>,
 ) -> Result<(CoarseFit, T), CoarseError> {
     let t0 = std::time::Instant::now();
     let samples = samples.into();
     let keep_g = schedule.keep_g && levels_run(&samples, layout, schedule, opts.lobes);
-    let (opts_full, g_use) = if keep_g {
-        let fixed = FitOptions {
-            g_method: GMethod::Fixed,
-            tol: schedule.kept_g_tol,
-            ..opts
-        };
-        (fixed, GUse::Fixed)
-    } else {
-        (opts, GUse::Updated)
+    let full_options = |opts: FitOptions| {
+        if keep_g {
+            FitOptions {
+                g_method: GMethod::Fixed,
+                tol: schedule.kept_g_tol,
+                ..opts
+            }
+        } else {
+            opts
+        }
     };
+    let g_use = if keep_g { GUse::Fixed } else { GUse::Updated };
     // The levels' partner: the build's thread once the build is done.
     let duo = Duo::new();
     let (set, coarse) = rayon::join(
@@ -204,9 +297,32 @@ pub fn fit_beside<'a, T: Send>(
             duo.serve();
             ((set, built), beside)
         },
-        || duo.lead(|| levels_fit(&samples, (layout, so), schedule, opts, start, &duo)),
+        || {
+            duo.lead(|| {
+                let (start, form, levels, last) =
+                    levels_fit(&samples, (layout, so), schedule, opts, start, &duo)?;
+                let finish = match (screen, last) {
+                    (Some(screen), Some((kept, set, result))) => Some(screen(LevelsEnd {
+                        kept: &kept,
+                        set: &set,
+                        result: &result,
+                        layout,
+                        so,
+                        schedule,
+                        duo: &duo,
+                    })?),
+                    _ => None,
+                };
+                let finish = finish.unwrap_or(Finish {
+                    start,
+                    form,
+                    opts,
+                    so: None,
+                });
+                Ok::<_, CoarseError>((finish, levels))
+            })
+        },
     );
-    drop(samples);
     if crate::phases::enabled() {
         let (ran, back, left) = duo.handed_off();
         let left = if left {
@@ -217,13 +333,20 @@ pub fn fit_beside<'a, T: Send>(
         eprintln!("npf timing: coarse partner ran {ran} halves, {back} taken back{left}");
     }
     let ((set, set_seconds), beside) = set;
-    let set = set?;
-    let (start, form, levels) = coarse?;
+    let mut set = set?;
+    let (finish, levels) = coarse?;
+    if let Some(so) = finish.so {
+        // The screen chose other sample options (weights): that set.
+        drop(set);
+        crate::memory::release_free();
+        set = FitSet::build_from(&samples, layout, so, g_use)?;
+    }
+    drop(samples);
     // The decimated levels' sets and the build's temporaries are freed:
     // give their pages back before the full set's caches are allocated.
     crate::memory::release_free();
-    let mut exec = Executor::new(&set, opts_full).start_from(start);
-    if let Some(form) = form {
+    let mut exec = Executor::new(&set, full_options(finish.opts)).start_from(finish.start);
+    if let Some(form) = finish.form {
         exec = exec.start_form(form);
     }
     let result = exec.observe(observer).run()?;
@@ -288,26 +411,27 @@ fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
 /// Whether any decimated level of `schedule` will run (the count
 /// [`levels_fit`] tests, without building the decimated samples).
 fn levels_run(samples: &SampleData, layout: Layout, schedule: Schedule, lobes: usize) -> bool {
+    levels_run_on(samples, layout, schedule.factors, lobes)
+}
+
+/// Whether a decimated level of `factors` runs on `samples`.
+pub fn levels_run_on<S: SampleSource + ?Sized>(
+    samples: &S,
+    layout: Layout,
+    factors: &[usize],
+    lobes: usize,
+) -> bool {
     let least = MIN_SAMPLES_PER_PARAMETER * layout.param_count(lobes);
-    schedule.factors.iter().filter(|&&f| f > 1).any(|&factor| {
+    factors.iter().filter(|&&f| f > 1).any(|&factor| {
         let keep = kept_by(factor);
         let kept = (0..samples.sample_count()).filter(|&i| keep(i)).count();
         kept >= least
     })
 }
 
-/// The decimated levels of [`fit`], in turn: the factors and the diffuse
-/// form they end at (no form when no level ran).
-fn levels_fit(
-    samples: &SampleData,
-    (layout, so): (Layout, SampleOptions),
-    schedule: Schedule,
-    opts: FitOptions,
-    mut start: Factors,
-    duo: &Duo,
-) -> Result<(Factors, Option<crate::model::DiffuseForm>, Vec<CoarseLevel>), CoarseError> {
-    let mut done = Vec::new();
-    let mut form = None;
+/// A decimated level's options: `opts` with the schedule's tolerance,
+/// sweep limit and joint steps.
+fn level_options(schedule: Schedule, opts: FitOptions) -> FitOptions {
     let mut level_opts = FitOptions {
         tol: schedule.tol,
         max_sweeps: schedule.max_sweeps,
@@ -318,6 +442,35 @@ fn levels_fit(
         level_opts.gauss_newton_cg = LEVEL_GN_CG;
         level_opts.gauss_newton_below = Some(LEVEL_GN_BELOW);
     }
+    level_opts
+}
+
+/// The last decimated level's samples, set and run.
+type LastLevel = (MeasuredSamples, FitSet, FitResult);
+
+/// The decimated levels of [`fit`], in turn: the factors and the diffuse
+/// form they end at (no form when no level ran), and the last level.
+#[allow(clippy::type_complexity)]
+fn levels_fit(
+    samples: &SampleData,
+    (layout, so): (Layout, SampleOptions),
+    schedule: Schedule,
+    opts: FitOptions,
+    mut start: Factors,
+    duo: &Duo,
+) -> Result<
+    (
+        Factors,
+        Option<crate::model::DiffuseForm>,
+        Vec<CoarseLevel>,
+        Option<LastLevel>,
+    ),
+    CoarseError,
+> {
+    let mut done = Vec::new();
+    let mut form = None;
+    let mut last = None;
+    let level_opts = level_options(schedule, opts);
     for &factor in schedule.factors.iter().filter(|&&f| f > 1) {
         let t = std::time::Instant::now();
         let kept = decimate(samples, factor);
@@ -357,10 +510,11 @@ fn levels_fit(
             seconds: t.elapsed().as_secs_f64(),
             separable_held: held,
         });
-        start = r.factors;
-        form = Some(r.model.diffuse_form);
+        start = r.factors.clone();
+        form = Some(r.model.diffuse_form.clone());
+        last = Some((kept, small, r));
     }
-    Ok((start, form, done))
+    Ok((start, form, done, last))
 }
 
 #[cfg(test)]

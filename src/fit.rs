@@ -809,6 +809,67 @@ struct Produced {
     /// The error measures' model-independent part, where it was prepared
     /// during the fit.
     reference: Option<MerlReference>,
+    /// Auto's screen: the chosen candidate (an index of the plan's) and
+    /// the record of every candidate.
+    auto: Option<(usize, serde_json::Value)>,
+}
+
+/// `--model auto`'s plan ([`crate::auto`]): the candidate forms, the
+/// default first, and the screen that fits each from where the default's
+/// decimated levels end and judges them. The full set then fits the
+/// chosen one only.
+pub struct AutoPlan<'a> {
+    /// (name, configuration) of each candidate; the first is the default.
+    pub candidates: Vec<(&'static str, FitConfig)>,
+    /// The screen: given the levels' end and the candidates' runs, the
+    /// chosen one's decimated fit and the record.
+    #[allow(clippy::type_complexity)]
+    pub screen: &'a (dyn Fn(&crate::coarse::LevelsEnd<'_>, &[CandidateRun]) -> Result<Screened, CoarseError>
+             + Sync),
+}
+
+/// A candidate as the fit runs it.
+pub struct CandidateRun {
+    /// Its name.
+    pub name: &'static str,
+    /// Its configuration.
+    pub config: FitConfig,
+    /// Its solver options.
+    pub opts: FitOptions,
+    /// Its sample options (on this data).
+    pub so: SampleOptions,
+}
+
+/// What auto's screen chose.
+pub struct Screened {
+    /// The chosen candidate's index.
+    pub chosen: usize,
+    /// Its fit on the decimated set (where the full set starts).
+    pub result: FitResult,
+    /// Every candidate's record.
+    pub record: serde_json::Value,
+}
+
+/// The solver options a factor kind runs with on `layout`.
+fn options_for(config: &FitConfig, layout: Layout) -> FitOptions {
+    let base = FitOptions {
+        gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
+        ..config.fit_options()
+    };
+    match config.model {
+        ModelKind::IndependentG => FitOptions {
+            lobes: 3,
+            channel_mask: INDEPENDENT_CHANNELS,
+            ..base
+        },
+        _ => base,
+    }
+}
+
+/// Whether auto's plan can screen on `samples`: a decimated level runs.
+pub fn auto_screens<S: SampleSource + ?Sized>(config: &FitConfig, samples: &S) -> bool {
+    let layout = config.layout_for(samples);
+    crate::coarse::levels_run_on(samples, layout, &config.coarse, config.lobes)
 }
 
 /// Refuse data beyond [`MAX_SAMPLE_VALUE`] before fitting it.
@@ -856,6 +917,7 @@ fn run_kind(
     samples: SampleData<'_>,
     config: &FitConfig,
     observer: &mut dyn FnMut(usize, &SweepReport),
+    plan: Option<&AutoPlan>,
 ) -> Result<Produced, FitError> {
     config.validate()?;
     // The value check and the floor rule on the samples' own type, not
@@ -879,7 +941,8 @@ fn run_kind(
     let factor_fit = |samples: SampleData<'_>,
                       opts: FitOptions,
                       start: Factors,
-                      observer: &mut dyn FnMut(usize, &SweepReport)| {
+                      observer: &mut dyn FnMut(usize, &SweepReport),
+                      screen: Option<crate::coarse::Screen>| {
         let mut obs = |r: &SweepReport| observer(0, r);
         let schedule = crate::coarse::Schedule {
             factors: &config.coarse,
@@ -904,12 +967,11 @@ fn run_kind(
         };
         let run = (schedule, opts, start);
         let (fitted, reference) =
-            crate::coarse::fit_beside(samples, (layout, so), run, &mut obs, beside).map_err(
-                |e| match e {
+            crate::coarse::fit_beside(samples, (layout, so), run, &mut obs, beside, screen)
+                .map_err(|e| match e {
                     CoarseError::Samples(e) => FitError::Samples(e),
                     CoarseError::Solver(e) => FitError::Solver(e),
-                },
-            )?;
+                })?;
         crate::phases::note("full set built after", fitted.set_seconds);
         let reference = reference.map(|(r, seconds)| {
             crate::phases::note("measures' reference, beside the coarse level", seconds);
@@ -950,37 +1012,54 @@ fn run_kind(
             floor,
             coarse,
             reference,
+            auto: None,
         })
     };
     let mut produced = match config.model {
         ModelKind::Factor => {
-            let opts = FitOptions {
-                gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
-                ..config.fit_options()
-            };
-            factor_fit(
-                samples,
-                opts,
-                init::initial_factors(layout, opts.lobes),
-                observer,
-            )
+            let opts = options_for(config, layout);
+            let start = init::initial_factors(layout, opts.lobes);
+            factor_fit(samples, opts, start, observer, None)
         }
         ModelKind::IndependentG => {
-            let opts = FitOptions {
-                lobes: 3,
-                channel_mask: INDEPENDENT_CHANNELS,
-                gauss_newton: config.gauss_newton.unwrap_or(!layout.is_isotropic()),
-                ..config.fit_options()
-            };
+            let opts = options_for(config, layout);
             let alpha = init::start_alphas(1)[0];
-            factor_fit(
-                samples,
-                opts,
-                init::initial_factors_with(layout, &[alpha; 3]),
-                observer,
-            )
+            let start = init::initial_factors_with(layout, &[alpha; 3]);
+            factor_fit(samples, opts, start, observer, None)
         }
-        ModelKind::Auto => Err(FitError::AutoNeedsTable),
+        ModelKind::Auto => {
+            let Some(plan) = plan else {
+                return Err(FitError::AutoNeedsTable);
+            };
+            let runs: Vec<CandidateRun> = plan
+                .candidates
+                .iter()
+                .map(|(name, c)| CandidateRun {
+                    name,
+                    config: c.clone(),
+                    opts: options_for(c, layout),
+                    so: c.sample_options_with(&floor, isotropic),
+                })
+                .collect();
+            let chosen = std::sync::Mutex::new(None);
+            let screen: crate::coarse::Screen = Box::new(|end| {
+                let s = (plan.screen)(&end, &runs)?;
+                let c = &runs[s.chosen];
+                let finish = crate::coarse::Finish {
+                    start: s.result.factors.clone(),
+                    form: Some(s.result.model.diffuse_form.clone()),
+                    opts: c.opts,
+                    so: (c.so != end.so).then_some(c.so),
+                };
+                *chosen.lock().unwrap_or_else(|e| e.into_inner()) = Some((s.chosen, s.record));
+                Ok(finish)
+            });
+            let opts = runs[0].opts;
+            let start = init::initial_factors(layout, opts.lobes);
+            let mut produced = factor_fit(samples, opts, start, observer, Some(screen))?;
+            produced.auto = chosen.into_inner().unwrap_or_else(|e| e.into_inner());
+            Ok(produced)
+        }
         ModelKind::Ggx => {
             let fit = match &samples {
                 SampleData::Records(s) => fit_ggx(s, so)?,
@@ -1002,6 +1081,7 @@ fn run_kind(
                 floor,
                 coarse: None,
                 reference: None,
+                auto: None,
             })
         }
     }?;
@@ -1028,6 +1108,7 @@ pub fn fit_model(
         SampleData::Records(Cow::Borrowed(samples)),
         config,
         observer,
+        None,
     )
     .map(|p| (p.result, p.ggx))
 }
@@ -1041,11 +1122,23 @@ pub fn fit(
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
+    fit_with(samples, config, None, observer)
+}
+
+/// [`fit`], with `--model auto`'s plan ([`crate::auto`]) where
+/// `config.model` is [`ModelKind::Auto`].
+pub fn fit_with(
+    samples: &MeasuredSamples,
+    config: &FitConfig,
+    plan: Option<&AutoPlan>,
+    observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+) -> Result<Fitted, FitError> {
     fit_measured(
         SampleData::Records(Cow::Borrowed(samples)),
         || Ok(Measured::Samples(samples)),
         config,
         observer,
+        plan,
     )
 }
 
@@ -1066,11 +1159,23 @@ pub fn fit_owned(
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
 ) -> Result<Fitted, FitError> {
+    fit_owned_with(samples, reread, config, None, observer)
+}
+
+/// [`fit_owned`], with `--model auto`'s plan as for [`fit_with`].
+pub fn fit_owned_with(
+    samples: impl Into<SampleData<'static>>,
+    reread: impl FnOnce() -> Result<npf_data_loaders::Table, FitError> + Send,
+    config: &FitConfig,
+    plan: Option<&AutoPlan>,
+    observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+) -> Result<Fitted, FitError> {
     fit_measured(
         samples.into(),
         || reread().map(Measured::Table),
         config,
         observer,
+        plan,
     )
 }
 
@@ -1137,6 +1242,7 @@ fn fit_measured<'a>(
     remeasure: impl FnOnce() -> Result<Measured<'a>, FitError> + Send,
     config: &FitConfig,
     observer: &mut (dyn FnMut(usize, &SweepReport) + Send),
+    plan: Option<&AutoPlan>,
 ) -> Result<Fitted, FitError> {
     config.validate()?;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -1156,7 +1262,13 @@ fn fit_measured<'a>(
             floor,
             coarse,
             reference,
-        } = run_kind(samples, config, observer)?;
+            auto,
+        } = run_kind(samples, config, observer, plan)?;
+        // Auto's provenance is the chosen candidate's, with the record.
+        let (config, auto) = match (auto, plan) {
+            (Some((i, record)), Some(plan)) => (&plan.candidates[i].1, Some(record)),
+            _ => (config, None),
+        };
         // The sets and caches are freed; their pages go back before the
         // samples are made again.
         crate::memory::release_free();
@@ -1241,6 +1353,9 @@ fn fit_measured<'a>(
                 }
                 if let Some(e) = energy {
                     v["energy_scale"] = e;
+                }
+                if let Some(a) = auto {
+                    v["auto"] = a;
                 }
                 v
             }),

@@ -56,13 +56,15 @@ pub fn scenes() -> Vec<(&'static str, Scene)> {
     ]
 }
 
-/// The render settings the judge uses: 64 px and the half-vector
+/// The render settings the judge uses: 32 px and the half-vector
 /// environment quadrature (it converges on sharp highlights, where the
-/// sphere grid reads a peak at isolated points), 24 strata.
+/// sphere grid reads a peak at isolated points), 12 strata. On the 16
+/// MERL tables auto chooses as it does at 64 px and 24 strata, in about
+/// a quarter of the renders' time (BENCHMARKS.md, issue 43).
 pub fn judge_options() -> RenderOptions {
     RenderOptions {
-        res: 64,
-        n_theta: 24,
+        res: 32,
+        n_theta: 12,
         env: EnvQuadrature::HalfVector,
     }
 }
@@ -130,6 +132,12 @@ impl Judge {
 
     fn lit(scenes: &[(&'static str, Scene)]) -> Vec<Scene> {
         scenes.iter().map(|(_, s)| s.clone()).collect()
+    }
+
+    /// The render settings, for a record.
+    pub fn options_record(&self) -> serde_json::Value {
+        let o = self.opts;
+        serde_json::json!({ "res": o.res, "n_theta": o.n_theta, "env": format!("{:?}", o.env) })
     }
 
     /// The scenes' names, in score order.

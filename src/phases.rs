@@ -28,6 +28,14 @@ fn cpu_seconds() -> f64 {
     f64::NAN
 }
 
+/// The process's peak resident memory so far (MB), where the system says.
+fn peak_memory() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
 /// Whether `NPF_TIMING` asks for the breakdown.
 pub fn enabled() -> bool {
     match STATE.load(Ordering::Relaxed) {
@@ -50,10 +58,11 @@ pub fn mark(phase: &str) {
     let mut marks = MARKS.lock().unwrap_or_else(|e| e.into_inner());
     let (first, last, last_cpu) = marks.get_or_insert((now, now, cpu));
     eprintln!(
-        "npf timing: {phase:<28} {:8.3} s wall {:7.3} s cpu  (at {:7.3} s)",
+        "npf timing: {phase:<28} {:8.3} s wall {:7.3} s cpu  (at {:7.3} s){}",
         (now - *last).as_secs_f64(),
         cpu - *last_cpu,
-        (now - *first).as_secs_f64()
+        (now - *first).as_secs_f64(),
+        peak_memory().map_or(String::new(), |m| format!("  peak {m:.0} MB"))
     );
     (*last, *last_cpu) = (now, cpu);
 }

@@ -34,10 +34,13 @@ fn truth(form: DiffuseForm) -> Model {
     m
 }
 
-fn auto_choice(table: &MerlTable) -> String {
+/// Auto's fit of `table`'s samples (every `step`-th of them), the record
+/// checked: 4 candidates, the model the chosen one's; with all samples a
+/// decimated level runs and the candidates are screened there, with a
+/// third of them each is fitted in full.
+fn auto_fit(table: &MerlTable, step: usize) -> (npf::fit::Fitted, String) {
     let mut samples = table.samples("synthetic");
-    // Every third sample: a quicker fit of the same BRDF.
-    samples.samples = samples.samples.into_iter().step_by(3).collect();
+    samples.samples = samples.samples.into_iter().step_by(step).collect();
     let config = FitConfig {
         max_sweeps: 30,
         ..FitConfig::default()
@@ -63,14 +66,19 @@ fn auto_choice(table: &MerlTable) -> String {
         DiffuseForm::Separable { .. }
     );
     assert_eq!(separable, chosen.contains("separable"), "{chosen}");
-    chosen
+    let screened = auto.get("screened_on").is_some();
+    assert_eq!(screened, step == 1, "{auto}");
+    (fitted, chosen)
 }
 
 #[test]
 fn auto_picks_the_separable_form_on_a_table_made_with_it() {
     let p = ashikhmin_shirley_p(SEPARABLE_NODES);
     let table = to_merl(&truth(DiffuseForm::Separable { p }));
-    assert_eq!(auto_choice(&table), "factor, separable diffuse");
+    // Each candidate fitted in full, and screened on the decimated level.
+    for step in [3, 1] {
+        assert_eq!(auto_fit(&table, step).1, "factor, separable diffuse");
+    }
 }
 
 #[test]
@@ -78,7 +86,21 @@ fn auto_keeps_the_default_on_a_table_made_with_it() {
     // The separable form contains Lambert (P = 1): it can only tie here,
     // and a tie keeps the default.
     let table = to_merl(&truth(DiffuseForm::Lambert));
-    assert_eq!(auto_choice(&table), "factor");
+    assert_eq!(auto_fit(&table, 3).1, "factor");
+    let (fitted, chosen) = auto_fit(&table, 1);
+    assert_eq!(chosen, "factor");
+    // Screened, the kept default is the default's own fit, bit for bit.
+    let default = npf::fit::fit(
+        &table.samples("synthetic"),
+        &FitConfig {
+            max_sweeps: 30,
+            ..FitConfig::default()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(fitted.result.model, default.result.model);
+    assert_eq!(fitted.metrics, default.metrics);
 }
 
 fn record(name: &'static str, mean_db: f64) -> CandidateRecord {
@@ -93,6 +115,7 @@ fn record(name: &'static str, mean_db: f64) -> CandidateRecord {
         log_rmse: 0.0,
         rel_cos_rmse: 0.0,
         seconds: 0.0,
+        sweeps: 0,
     }
 }
 

@@ -412,22 +412,33 @@ pub(super) fn fit_table(
 ) -> Result<Fitted, CliError> {
     // (clap refuses --model with --target or --budget.)
     if config.model == ModelKind::Auto {
-        let (table, samples) = super::read_measured(input, args.format)?;
-        crate::phases::mark("read + samples");
-        let reference: &(dyn crate::bsdf::Bsdf + Sync) = match &table {
-            // Read between its nodes, as a fit interpolates (a truncating
-            // read holds each node across its bin, docs/fitting.md).
-            npf_data_loaders::Table::Merl(t) => &crate::bsdf::InterpolatedMerl(t),
-            npf_data_loaders::Table::Utia(t) => t,
+        let source = input.display().to_string();
+        let stamp = file_stamp(input);
+        let table = npf_data_loaders::Table::read(input, args.format.map(Into::into))?;
+        // The judge renders the table read between its nodes, as a fit
+        // interpolates (a truncating read holds each node across its bin,
+        // docs/fitting.md); then the table goes into the fit.
+        let opts = crate::judge::judge_options();
+        let (judge, data): (_, crate::samples::SampleData) = match table {
+            npf_data_loaders::Table::Merl(t) => (
+                crate::judge::Judge::new(&crate::bsdf::InterpolatedMerl(&t), opts),
+                npf_data_loaders::MerlSamples::new(t, &source).into(),
+            ),
+            npf_data_loaders::Table::Utia(t) => (
+                crate::judge::Judge::new(&t, opts),
+                npf_data_loaders::Table::Utia(t).samples(&source).into(),
+            ),
         };
+        crate::phases::mark("read + judge's reference");
+        if crate::samples::SampleSource::sample_count(&data) == 0 {
+            return Err(CliError::Message(format!(
+                "{}: the table holds no valid samples (all cells missing)",
+                input.display()
+            )));
+        }
+        let reread = reread_checked(input, args.format, stamp);
         let mut observer = |_: usize, _: &SweepReport| {};
-        let fitted = crate::auto::fit(
-            &samples,
-            reference,
-            config,
-            crate::judge::judge_options(),
-            &mut observer,
-        )?;
+        let fitted = crate::auto::fit_owned(data, reread, &judge, config, &mut observer)?;
         if verbose {
             print_auto(&fitted);
         }
@@ -448,21 +459,10 @@ pub(super) fn fit_table(
             // error measures (its samples made piece by piece, not all
             // held), and refused if the file changed meanwhile. A MERL
             // table's samples are never made as records.
+            let stamp = file_stamp(input);
             let data = super::read_fit_data(input, args.format)?;
             crate::phases::mark("read + samples");
-            let source = input.display().to_string();
-            let stamp = file_stamp(input);
-            let reread = || {
-                let changed = |problem: String| FitError::Remeasure {
-                    source_name: source.clone(),
-                    problem,
-                };
-                if file_stamp(input) != stamp {
-                    return Err(changed("the input changed during the fit".into()));
-                }
-                npf_data_loaders::Table::read(input, args.format.map(Into::into))
-                    .map_err(|e| changed(format!("reading it again: {e}")))
-            };
+            let reread = reread_checked(input, args.format, stamp);
             let (bar, mut observer) = progress(config, verbose);
             let fitted = crate::fit::fit_owned(data, reread, config, &mut observer)?;
             bar.finish_and_clear();
@@ -485,6 +485,26 @@ pub(super) fn fit_table(
     let fitted = select(&samples, verbose, config, selection, reference.as_ref())?;
     drop(table);
     write_fitted(output, args, fitted)
+}
+
+/// Reads `input` again for the error measures after a fit, refused if it
+/// changed since `stamp` ([`file_stamp`]) was taken.
+fn reread_checked(
+    input: &std::path::Path,
+    format: Option<super::FormatArg>,
+    stamp: Option<(u64, std::time::SystemTime)>,
+) -> impl FnOnce() -> Result<npf_data_loaders::Table, FitError> + Send + '_ {
+    move || {
+        let changed = |problem: String| FitError::Remeasure {
+            source_name: input.display().to_string(),
+            problem,
+        };
+        if file_stamp(input) != stamp {
+            return Err(changed("the input changed during the fit".into()));
+        }
+        npf_data_loaders::Table::read(input, format.map(Into::into))
+            .map_err(|e| changed(format!("reading it again: {e}")))
+    }
 }
 
 /// The input's size and modification time (`None` if unreadable): what
