@@ -18,7 +18,7 @@ use crate::fit::{
 use crate::judge::{Judge, RenderScore};
 use crate::render::RenderOptions;
 use crate::samples::{FitSet, SampleData, Weighting};
-use crate::solver::{DiffuseKind, Factors, FitOptions, SweepReport};
+use crate::solver::{DiffuseKind, Factors, SweepReport};
 use npf_data_loaders::MeasuredSamples;
 
 /// A candidate must beat the default's mean render PSNR by more than this
@@ -186,12 +186,9 @@ pub fn screen(
                 ModelKind::IndependentG => independent_start(&end.result.factors),
                 _ => end.result.factors.clone(),
             };
-            let opts = FitOptions {
-                max_sweeps: SCREEN_SWEEPS,
-                ..run.opts
-            };
             let own = own_set(end, run)?;
-            end.run_capped(own.as_ref().unwrap_or(end.set), opts, start)?
+            let set = own.as_ref().unwrap_or(end.set);
+            end.run(set, (run.opts, SCREEN_SWEEPS), start, None)?
         };
         let seconds = t.elapsed().as_secs_f64();
         let model = &result.model;
@@ -219,17 +216,17 @@ pub fn screen(
     }
     let chosen = choose(&records);
     let mut result = results.swap_remove(chosen);
-    // The chosen one's level runs on to the default's limits.
+    // The chosen one's level runs on to the default's sweep limit.
     let mut continued = 0;
-    if chosen != 0 && !result.converged {
+    let left = end.schedule.max_sweeps.saturating_sub(SCREEN_SWEEPS);
+    if chosen != 0 && !result.converged && left > 0 {
         let run = &runs[chosen];
         let start = result.factors.clone();
         let form = result.model.diffuse_form.clone();
         let own = own_set(end, run)?;
         let set = own.as_ref().unwrap_or(end.set);
-        let more = end.run_on(set, run.opts, start, form)?;
-        continued = more.history.len();
-        result = more;
+        result = end.run(set, (run.opts, left), start, Some(form))?;
+        continued = result.history.len();
         crate::phases::mark("screen: the chosen one's level run on");
     }
     let record = serde_json::json!({

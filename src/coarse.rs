@@ -108,7 +108,9 @@ pub struct Schedule<'a> {
     /// at least one level runs). G is smooth (a few Catmull-Rom points per
     /// lobe), so a 32nd of the samples pins it down; D's narrow peaks are
     /// what needs them all. The G pass is half a full sweep's time
-    /// (BENCHMARKS.md, issue 15, "G from the coarse level").
+    /// (BENCHMARKS.md, issue 15, "G from the coarse level"). A separable
+    /// diffuse form's P (16 nodes) is held with it
+    /// ([`FitOptions::hold_p`]).
     pub keep_g: bool,
     /// The full set's tolerance when G is kept: its sweeps then move D, F,
     /// d and s only, which settle within a few sweeps.
@@ -165,55 +167,28 @@ pub struct LevelsEnd<'s> {
 }
 
 impl LevelsEnd<'_> {
-    /// A run on a decimated set (this level's, or one built from [`Self::kept`]
-    /// with other sample options) as the levels run: `opts` with the
-    /// schedule's tolerance and sweep limit, the levels' partner.
+    /// A run on a decimated set (this level's, or one built from
+    /// [`Self::kept`] with other sample options) as the levels run: `opts`
+    /// with the schedule's tolerance, at most `sweeps` sweeps (and the
+    /// schedule's limit), the levels' partner; from `start` and, where
+    /// given, a diffuse form.
     pub fn run(
         &self,
         set: &FitSet,
-        opts: FitOptions,
+        (opts, sweeps): (FitOptions, usize),
         start: Factors,
-    ) -> Result<FitResult, SolverError> {
-        Executor::new(set, level_options(self.schedule, opts))
-            .start_from(start)
-            .partner(self.duo)
-            .run()
-    }
-
-    /// [`Self::run`] from a diffuse form too (a run that stopped early,
-    /// going on).
-    pub fn run_on(
-        &self,
-        set: &FitSet,
-        opts: FitOptions,
-        start: Factors,
-        form: crate::model::DiffuseForm,
-    ) -> Result<FitResult, SolverError> {
-        Executor::new(set, level_options(self.schedule, opts))
-            .start_from(start)
-            .start_form(form)
-            .partner(self.duo)
-            .run()
-    }
-
-    /// [`Self::run`] with at most `opts.max_sweeps` (below the schedule's).
-    pub fn run_capped(
-        &self,
-        set: &FitSet,
-        opts: FitOptions,
-        start: Factors,
+        form: Option<crate::model::DiffuseForm>,
     ) -> Result<FitResult, SolverError> {
         let o = level_options(self.schedule, opts);
-        Executor::new(
-            set,
-            FitOptions {
-                max_sweeps: o.max_sweeps.min(opts.max_sweeps),
-                ..o
-            },
-        )
-        .start_from(start)
-        .partner(self.duo)
-        .run()
+        let o = FitOptions {
+            max_sweeps: o.max_sweeps.min(sweeps).max(1),
+            ..o
+        };
+        let mut exec = Executor::new(set, o).start_from(start).partner(self.duo);
+        if let Some(form) = form {
+            exec = exec.start_form(form);
+        }
+        exec.run()
     }
 }
 
@@ -279,6 +254,7 @@ pub fn fit_beside<'a, T: Send>(
         if keep_g {
             FitOptions {
                 g_method: GMethod::Fixed,
+                hold_p: true,
                 tol: schedule.kept_g_tol,
                 ..opts
             }

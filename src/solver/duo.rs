@@ -190,6 +190,9 @@ impl Duo {
                 // in this pool while it leads).
                 if let Some(rayon::Yield::Executed) = rayon::yield_now() {
                     idle = 0;
+                    // Time in that work is not time off the core (a long
+                    // piece, such as auto's renders, would read as one).
+                    last = std::time::Instant::now();
                 }
             } else {
                 std::hint::spin_loop();

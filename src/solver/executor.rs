@@ -231,9 +231,12 @@ impl<'a> Executor<'a> {
         update_diffuse_and_scales(set, &mut st, &mask);
         super::diffuse::start(set, &mut st, &mask, opts.diffuse, self.start_form.as_ref());
         let p_inc = match &st.diffuse_form {
-            DiffuseForm::Separable { p } => Some(super::separable::incidence(set, p.len())),
+            DiffuseForm::Separable { p } if !opts.hold_p => {
+                Some(super::separable::incidence(set, p.len()))
+            }
             _ => None,
         };
+        let p_held = opts.hold_p && opts.diffuse == super::DiffuseKind::Separable;
         // See `hold_form`.
         let mut form_held = self.hold_form
             && matches!(&st.diffuse_form,
@@ -302,7 +305,7 @@ impl<'a> Executor<'a> {
                 update_diffuse_and_scales(set, &mut st, &mask);
             }
             rec.mark(Stage::DiffuseAndScales, set, &st);
-            if !lambert && !form_held {
+            if !lambert && !form_held && !p_held {
                 super::diffuse::refresh(set, &mut st, &mask, opts.diffuse, p_inc.as_ref());
                 rec.mark(Stage::DiffuseForm, set, &st);
             }

@@ -124,6 +124,12 @@ pub struct FitOptions {
     /// paper's) or height-correlated, whose G pass is [`g2_update`].
     #[serde(default)]
     pub masking: crate::model::Masking,
+    /// Hold a separable diffuse form's P where it starts (the full set
+    /// after a coarse level that fitted it, as G is held there: P is as
+    /// smooth as G, and its per-sample stencils would be the full set's
+    /// largest cache).
+    #[serde(default)]
+    pub hold_p: bool,
 }
 
 fn default_gauss_newton_cg() -> usize {
@@ -158,6 +164,7 @@ impl Default for FitOptions {
             gauss_newton_cg: gauss_newton::CG_ITERATIONS,
             gauss_newton_below: None,
             masking: crate::model::Masking::Separable,
+            hold_p: false,
         }
     }
 }
