@@ -34,8 +34,10 @@ pub enum ModelKind {
     IndependentG,
     /// Analytic GGX + Lambert with Schlick Fresnel (10 parameters).
     Ggx,
-    /// The candidate form whose renders are closest to the measured
-    /// table's ([`crate::auto`]); the model file records the chosen one.
+    /// Of factor, factor with separable diffuse, Independent-G and factor
+    /// with cosine-L2 weights, the form whose renders (five scenes) are
+    /// closest to the measured table's; the model file records the choice
+    /// and every candidate (docs/fitting.md, src/auto.rs).
     Auto,
 }
 
