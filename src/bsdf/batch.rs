@@ -201,7 +201,8 @@ impl NpfBxdf {
         for v in u {
             same_len("random numbers", n, v.len())?;
         }
-        let Some(flat) = self.flat() else {
+        // The batch draws weigh a Lambertian diffuse term only.
+        let Some(flat) = self.flat().filter(|f| f.is_lambert()) else {
             out.resize(0);
             // (u_lobe, [u0, u1]) of draw j, in order.
             let us = u[0].iter().zip(u[1].iter().zip(u[2])).enumerate();

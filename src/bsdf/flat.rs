@@ -290,6 +290,8 @@ pub struct FlatEval {
     d: FlatTable,
     g: FlatTable,
     f: FlatTable,
+    /// A separable diffuse form's P nodes (uniform in theta over [0, pi/2]).
+    p: Option<Vec<f64>>,
 }
 
 impl FlatEval {
@@ -299,9 +301,14 @@ impl FlatEval {
     pub fn new(model: &Model) -> Option<Self> {
         let l = &model.layout;
         // Only the paper's plain form is flattened; the options go through Model::eval.
-        let lambert = matches!(model.diffuse_form, crate::model::DiffuseForm::Lambert)
-            && model.masking.is_separable()
-            && model.compensation.is_none();
+        let p = match &model.diffuse_form {
+            crate::model::DiffuseForm::Lambert => None,
+            crate::model::DiffuseForm::Separable { p } if p.len() >= 2 => {
+                Some(p.iter().map(|&v| v as f64).collect())
+            }
+            _ => return None,
+        };
+        let lambert = model.masking.is_separable() && model.compensation.is_none();
         if !lambert || !l.is_isotropic() || model.lobes.is_empty() || model.lobes.len() > FLAT_LOBES
         {
             return None;
@@ -328,7 +335,30 @@ impl FlatEval {
             d: FlatTable::new(l.d.theta, &d),
             g: FlatTable::new(l.g.theta, &g),
             f: FlatTable::new(l.f.theta, &f),
+            p,
         })
+    }
+
+    /// Whether the diffuse term is Lambertian (no separable P).
+    pub(crate) fn is_lambert(&self) -> bool {
+        self.p.is_none()
+    }
+
+    /// The diffuse albedo times P(theta_i) P(theta_o) at the axis
+    /// coordinates x = theta / (pi/2) (the model's linear reading of P).
+    #[inline(always)]
+    fn diffuse_at(&self, xi: f64, xo: f64) -> [f64; 3] {
+        let Some(p) = &self.p else {
+            return self.diffuse;
+        };
+        let at = |x: f64| {
+            let y = x * (p.len() - 1) as f64;
+            let k = (y as usize).min(p.len() - 2);
+            let u = y - k as f64;
+            p[k] * (1.0 - u) + p[k + 1] * u
+        };
+        let pp = at(xi) * at(xo);
+        self.diffuse.map(|d| d * pp)
     }
 
     /// Heap bytes of the flat tables.
@@ -387,9 +417,9 @@ impl FlatEval {
         let t01: [F64x2; FLAT_LOBES] =
             std::array::from_fn(|m| self.s01[m] * f[0] * F64x2::splat(spec[m]));
         let t2: [f64; FLAT_LOBES] = std::array::from_fn(|m| self.s[m][2] * f2 * spec[m]);
-        let v01 =
-            F64x2::new(self.diffuse[0], self.diffuse[1]) + ((t01[0] + t01[1]) + (t01[2] + t01[3]));
-        let v2 = self.diffuse[2] + ((t2[0] + t2[1]) + (t2[2] + t2[3]));
+        let dif = self.diffuse_at(x_io.lo(), x_io.hi());
+        let v01 = F64x2::new(dif[0], dif[1]) + ((t01[0] + t01[1]) + (t01[2] + t01[3]));
+        let v2 = dif[2] + ((t2[0] + t2[1]) + (t2[2] + t2[3]));
         let v01 = v01.max(zero);
         [v01.lo(), v01.hi(), v2.max(0.0)]
     }
@@ -465,6 +495,7 @@ impl FlatEval {
             self.g.stencils(self.g.coords(&t_o, x_o)),
         );
         let inv_cc = (one / (iz.min(one) * oz.min(one))).to_array();
+        let (xi, xo) = (x_i.to_array(), x_o.to_array());
         let mut out = [[0.0; 3]; 4];
         for k in 0..4 {
             if !valid[k] {
@@ -482,7 +513,13 @@ impl FlatEval {
             let t1 = V::load(&s[1]) * f * V::splat(spec[1]);
             let t2 = V::load(&s[2]) * f * V::splat(spec[2]);
             let t3 = V::load(&s[3]) * f * V::splat(spec[3]);
-            let v = V::load(&self.diffuse4) + ((t0 + t1) + (t2 + t3));
+            let dif = if self.p.is_some() {
+                let d = self.diffuse_at(xi[k], xo[k]);
+                V::load(&[d[0], d[1], d[2], 0.0])
+            } else {
+                V::load(&self.diffuse4)
+            };
+            let v = dif + ((t0 + t1) + (t2 + t3));
             let v = v.max(V::splat(0.0)).to_array();
             out[k] = [v[0], v[1], v[2]];
         }
@@ -803,10 +840,25 @@ mod tests {
         }
     }
 
+    fn separable(mut m: crate::model::Model) -> crate::model::Model {
+        let n = crate::model::SEPARABLE_NODES;
+        m.diffuse = [0.3, 0.2, 0.1];
+        m.diffuse_form = crate::model::DiffuseForm::Separable {
+            p: crate::synth::ashikhmin_shirley_p(n),
+        };
+        m
+    }
+
     #[test]
     fn flat_eval_matches_the_model() {
-        let m = known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]);
-        let f = FlatEval::new(&m).unwrap();
+        let plain = known_factor_model(Layout::default(), &[0.02, 0.15, 0.5]);
+        for m in [plain.clone(), separable(plain)] {
+            flat_matches(&m);
+        }
+    }
+
+    fn flat_matches(m: &crate::model::Model) {
+        let f = FlatEval::new(m).unwrap();
         let mut worst = 0.0f64;
         for k in 0..20_000 {
             let a = k as f64 * 0.618_033_988_749_895;
@@ -886,6 +938,7 @@ mod tests {
             known_factor_model(Layout::default(), &[0.05, 0.1, 0.3, 0.7]),
             known_factor_model(Layout::isotropic(12), &[0.3]),
             known_factor_model(squared, &[0.1, 0.4]),
+            separable(known_factor_model(Layout::default(), &[0.02, 0.15, 0.5])),
         ];
         for m in &models {
             let f = FlatEval::new(m).unwrap();
