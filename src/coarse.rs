@@ -157,7 +157,7 @@ pub struct LevelsEnd<'s> {
     pub set: &'s FitSet,
     /// The last level's run: the fit the screen starts from.
     pub result: &'s FitResult,
-    /// The levels' layout and sample options.
+    /// The levels' layout.
     pub layout: Layout,
     /// Their sample options.
     pub so: SampleOptions,
