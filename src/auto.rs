@@ -176,6 +176,9 @@ pub fn screen(
 ) -> Result<Screened, CoarseError> {
     let mut results = Vec::with_capacity(runs.len());
     let mut records = Vec::with_capacity(runs.len());
+    // Candidates with their own weights get their own decimated set, kept
+    // for the chosen one's run on.
+    let mut own_sets = Vec::with_capacity(runs.len());
     for (i, run) in runs.iter().enumerate() {
         let t = std::time::Instant::now();
         let result = if i == 0 {
@@ -186,8 +189,8 @@ pub fn screen(
                 ModelKind::IndependentG => independent_start(&end.result.factors),
                 _ => end.result.factors.clone(),
             };
-            let own = own_set(end, run)?;
-            let set = own.as_ref().unwrap_or(end.set);
+            own_sets.push(own_set(end, run)?);
+            let set = own_sets[i - 1].as_ref().unwrap_or(end.set);
             end.run(set, (run.opts, SCREEN_SWEEPS), start, None)?
         };
         let seconds = t.elapsed().as_secs_f64();
@@ -223,24 +226,17 @@ pub fn screen(
         let run = &runs[chosen];
         let start = result.factors.clone();
         let form = result.model.diffuse_form.clone();
-        let own = own_set(end, run)?;
-        let set = own.as_ref().unwrap_or(end.set);
+        let set = own_sets[chosen - 1].as_ref().unwrap_or(end.set);
         result = end.run(set, (run.opts, left), start, Some(form))?;
         continued = result.history.len();
         crate::phases::mark("screen: the chosen one's level run on");
     }
-    let record = serde_json::json!({
-        "chosen": records[chosen].name,
-        "margin_db": MARGIN_DB,
-        "scenes": judge.scene_names(),
-        "render": judge.options_record(),
-        "screened_on": {
-            "factor": end.schedule.factors.last(),
-            "samples": end.set.len(),
-            "sweeps": SCREEN_SWEEPS,
-            "chosen_ran_on": continued,
-        },
-        "candidates": records,
+    let mut record = auto_record(judge, &records, chosen);
+    record["screened_on"] = serde_json::json!({
+        "factor": end.schedule.factors.last(),
+        "samples": end.set.len(),
+        "sweeps": SCREEN_SWEEPS,
+        "chosen_ran_on": continued,
     });
     Ok(Screened {
         chosen,
@@ -334,17 +330,22 @@ fn fit_each(
     }
     let chosen = choose(&records);
     let mut fitted = fits.swap_remove(chosen);
-    let record = serde_json::json!({
+    if let Some(sel) = fitted.info.selection.as_mut() {
+        sel["auto"] = auto_record(judge, &records, chosen);
+    }
+    Ok(fitted)
+}
+
+/// `fit.selection.auto`: the choice, the judge's settings and every
+/// candidate's record.
+fn auto_record(judge: &Judge, records: &[CandidateRecord], chosen: usize) -> serde_json::Value {
+    serde_json::json!({
         "chosen": records[chosen].name,
         "margin_db": MARGIN_DB,
         "scenes": judge.scene_names(),
         "render": judge.options_record(),
         "candidates": records,
-    });
-    if let Some(sel) = fitted.info.selection.as_mut() {
-        sel["auto"] = record;
-    }
-    Ok(fitted)
+    })
 }
 
 /// The index of the chosen candidate: the best mean render PSNR, unless

@@ -275,10 +275,10 @@ pub fn fit_beside<'a, T: Send>(
         },
         || {
             duo.lead(|| {
-                let (start, form, levels, last) =
-                    levels_fit(&samples, (layout, so), schedule, opts, start, &duo)?;
+                let (levels, last) =
+                    levels_fit(&samples, (layout, so), schedule, opts, &start, &duo)?;
                 let finish = match (screen, last) {
-                    (Some(screen), Some((kept, set, result))) => Some(screen(LevelsEnd {
+                    (Some(screen), Some((kept, set, result))) => screen(LevelsEnd {
                         kept: &kept,
                         set: &set,
                         result: &result,
@@ -286,15 +286,20 @@ pub fn fit_beside<'a, T: Send>(
                         so,
                         schedule,
                         duo: &duo,
-                    })?),
-                    _ => None,
+                    })?,
+                    (_, Some((_, _, r))) => Finish {
+                        start: r.factors,
+                        form: Some(r.model.diffuse_form),
+                        opts,
+                        so: None,
+                    },
+                    (_, None) => Finish {
+                        start,
+                        form: None,
+                        opts,
+                        so: None,
+                    },
                 };
-                let finish = finish.unwrap_or(Finish {
-                    start,
-                    form,
-                    opts,
-                    so: None,
-                });
                 Ok::<_, CoarseError>((finish, levels))
             })
         },
@@ -424,28 +429,20 @@ fn level_options(schedule: Schedule, opts: FitOptions) -> FitOptions {
 /// The last decimated level's samples, set and run.
 type LastLevel = (MeasuredSamples, FitSet, FitResult);
 
-/// The decimated levels of [`fit`], in turn: the factors and the diffuse
-/// form they end at (no form when no level ran), and the last level.
-#[allow(clippy::type_complexity)]
+/// The decimated levels of [`fit`], in turn, each from where the one
+/// before ended (the first from `start`): what each did, and the last
+/// one (none when no level ran), whose run holds the factors and the
+/// diffuse form the full set starts from.
 fn levels_fit(
     samples: &SampleData,
     (layout, so): (Layout, SampleOptions),
     schedule: Schedule,
     opts: FitOptions,
-    mut start: Factors,
+    start: &Factors,
     duo: &Duo,
-) -> Result<
-    (
-        Factors,
-        Option<crate::model::DiffuseForm>,
-        Vec<CoarseLevel>,
-        Option<LastLevel>,
-    ),
-    CoarseError,
-> {
+) -> Result<(Vec<CoarseLevel>, Option<LastLevel>), CoarseError> {
     let mut done = Vec::new();
-    let mut form = None;
-    let mut last = None;
+    let mut last: Option<LastLevel> = None;
     let level_opts = level_options(schedule, opts);
     for &factor in schedule.factors.iter().filter(|&&f| f > 1) {
         let t = std::time::Instant::now();
@@ -456,6 +453,11 @@ fn levels_fit(
             continue;
         }
         let small = FitSet::build(&kept, layout, so)?;
+        // The previous level's set goes before this one runs.
+        let (start, form) = match last.take() {
+            Some((_, _, r)) => (r.factors, Some(r.model.diffuse_form)),
+            None => (start.clone(), None),
+        };
         let run = |start: Factors, form: Option<crate::model::DiffuseForm>, hold: bool| {
             let mut exec = Executor::new(&small, level_opts).start_from(start);
             if let Some(form) = form {
@@ -465,7 +467,7 @@ fn levels_fit(
         };
         // A separable P's first level runs both ways of starting it
         // (`Executor::hold_form`) and keeps the lower objective.
-        let (r, held) = match form.take() {
+        let (r, held) = match form {
             None if opts.diffuse == DiffuseKind::Separable => {
                 let free = run(start.clone(), None, false)?;
                 let held = run(start, None, true)?;
@@ -486,11 +488,9 @@ fn levels_fit(
             seconds: t.elapsed().as_secs_f64(),
             separable_held: held,
         });
-        start = r.factors.clone();
-        form = Some(r.model.diffuse_form.clone());
         last = Some((kept, small, r));
     }
-    Ok((start, form, done, last))
+    Ok((done, last))
 }
 
 #[cfg(test)]

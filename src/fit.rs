@@ -1045,15 +1045,19 @@ fn run_kind(
                 .collect();
             let chosen = std::sync::Mutex::new(None);
             let screen: crate::coarse::Screen = Box::new(|end| {
-                let s = (plan.screen)(&end, &runs)?;
-                let c = &runs[s.chosen];
+                let Screened {
+                    chosen: i,
+                    result,
+                    record,
+                } = (plan.screen)(&end, &runs)?;
+                let c = &runs[i];
                 let finish = crate::coarse::Finish {
-                    start: s.result.factors.clone(),
-                    form: Some(s.result.model.diffuse_form.clone()),
+                    start: result.factors,
+                    form: Some(result.model.diffuse_form),
                     opts: c.opts,
                     so: (c.so != end.so).then_some(c.so),
                 };
-                *chosen.lock().unwrap_or_else(|e| e.into_inner()) = Some((s.chosen, s.record));
+                *chosen.lock().unwrap_or_else(|e| e.into_inner()) = Some((i, record));
                 Ok(finish)
             });
             let opts = runs[0].opts;

@@ -114,24 +114,22 @@ pub fn linear_psnr(reference: &Image, test: &Image) -> f64 {
 /// The reference's renders, one per scene.
 pub struct Judge {
     opts: RenderOptions,
-    scenes: Vec<(&'static str, Scene)>,
+    names: Vec<&'static str>,
+    scenes: Vec<Scene>,
     reference: Vec<Image>,
 }
 
 impl Judge {
     /// Render `reference` (the measured table) in every scene.
     pub fn new(reference: &(dyn Bsdf + Sync), opts: RenderOptions) -> Self {
-        let scenes = scenes();
-        let reference = render_scenes(opts, &Self::lit(&scenes), reference);
+        let (names, scenes): (Vec<_>, Vec<_>) = scenes().into_iter().unzip();
+        let reference = render_scenes(opts, &scenes, reference);
         Judge {
             opts,
+            names,
             scenes,
             reference,
         }
-    }
-
-    fn lit(scenes: &[(&'static str, Scene)]) -> Vec<Scene> {
-        scenes.iter().map(|(_, s)| s.clone()).collect()
     }
 
     /// The render settings, for a record.
@@ -142,14 +140,14 @@ impl Judge {
 
     /// The scenes' names, in score order.
     pub fn scene_names(&self) -> Vec<&'static str> {
-        self.scenes.iter().map(|(n, _)| *n).collect()
+        self.names.clone()
     }
 
     /// A candidate's PSNR against the reference in every scene. A scene
     /// whose reference is all black (no pixel lit) scores infinity for an
     /// identical candidate and is otherwise an ordinary PSNR.
     pub fn score(&self, candidate: &(dyn Bsdf + Sync)) -> RenderScore {
-        let images = render_scenes(self.opts, &Self::lit(&self.scenes), candidate);
+        let images = render_scenes(self.opts, &self.scenes, candidate);
         let (psnr_db, linear_psnr_db): (Vec<f64>, Vec<f64>) = self
             .reference
             .iter()

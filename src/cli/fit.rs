@@ -431,10 +431,7 @@ pub(super) fn fit_table(
         };
         crate::phases::mark("read + judge's reference");
         if crate::samples::SampleSource::sample_count(&data) == 0 {
-            return Err(CliError::Message(format!(
-                "{}: the table holds no valid samples (all cells missing)",
-                input.display()
-            )));
+            return Err(super::no_samples(input));
         }
         let reread = reread_checked(input, args.format, stamp);
         let mut observer = |_: usize, _: &SweepReport| {};
