@@ -33,6 +33,8 @@ enum Command {
     Sample(cli::sample::SampleArgs),
     /// Error measures and rendering PSNR of a model (or table) against a reference table.
     Compare(cli::compare::CompareArgs),
+    /// One self-contained HTML page to look at a fit: a WebGL sphere, the BRDF in the incidence plane, the factors, and a reference table beside it.
+    View(cli::view::ViewArgs),
     /// Fit every configuration on every material of a folder and write a benchmark report.
     Report(cli::report::ReportArgs),
     /// Energy-compensation tables, furnace checks and the microsurface simulator.
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => cli::demo::run(a),
         Command::Sample(a) => cli::sample::run(a),
         Command::Compare(a) => cli::compare::run(a),
+        Command::View(a) => cli::view::run(a),
         Command::Report(a) => cli::report::run(a),
         Command::Energy(cmd) => cli::energy::run(cmd),
     };

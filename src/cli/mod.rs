@@ -19,6 +19,7 @@ pub mod reconstruct;
 pub mod report;
 pub mod sample;
 pub mod signals;
+pub mod view;
 
 use std::path::Path;
 

@@ -32,15 +32,37 @@ pub(super) fn banner(model: &Model, what: &str) -> String {
 /// - `bool P_sample(vec3 wo, float uc, vec2 u, out vec3 wi, out vec3 f,
 ///   out float pdf)`: false (pdf 0) when the draw leaves the hemisphere.
 pub fn glsl_with(model: &Model, options: &ShaderOptions) -> Result<String, ShaderError> {
+    functions(model, options, true)
+}
+
+/// The model's evaluator alone: its tables and `vec3 P_eval(vec3 wo, vec3
+/// wi)`, the same text as in [`glsl_with`] without the sampler (for
+/// viewers: a shader compiler reads a third of the source).
+pub fn glsl_eval_with(model: &Model, options: &ShaderOptions) -> Result<String, ShaderError> {
+    functions(model, options, false)
+}
+
+fn functions(
+    model: &Model,
+    options: &ShaderOptions,
+    with_sampler: bool,
+) -> Result<String, ShaderError> {
     let tables = prepare(model, options)?;
     let src = Source::new(model, &tables, Dialect::Glsl, &options.prefix);
-    let mut s = banner(model, "GLSL functions of an npf fit");
-    s += &src.tables(true);
+    let what = if with_sampler {
+        "GLSL functions of an npf fit"
+    } else {
+        "GLSL evaluator of an npf fit"
+    };
+    let mut s = banner(model, what);
+    s += &src.tables(with_sampler);
     s += &src.helpers();
     s += &src.lookups();
     s += &eval_function(&src, None, None);
-    s += &src.sampler();
-    s += &sample_functions(&src);
+    if with_sampler {
+        s += &src.sampler();
+        s += &sample_functions(&src);
+    }
     Ok(s)
 }
 

@@ -29,7 +29,7 @@ mod sampler;
 
 pub use brdf_explorer::brdf_explorer_with;
 pub use c_header::c_header_with;
-pub use glsl::glsl_with;
+pub use glsl::{glsl_eval_with, glsl_with};
 pub use sampler::SamplerTables;
 
 use crate::model::{Model, ModelError};
