@@ -300,7 +300,33 @@ fn a_reference_table_is_shown_beside_the_fit() {
         html.matches("data:image/png;base64,").count() >= 4,
         "the renders are embedded"
     );
-    assert!(html.contains("\"render_psnr_db\""));
+    // the page's data: every scene of the menu rendered for table and fit,
+    // close (the table is the model's own reconstruction; MERL's reader
+    // holds each bin's value, so not identical)
+    let data = html
+        .split("<script id=\"npf-data\" type=\"application/json\">")
+        .nth(1)
+        .and_then(|t| t.split("</script>").next())
+        .expect("the page's data block");
+    let data: serde_json::Value = serde_json::from_str(&data.replace("<\\/", "</")).unwrap();
+    let scenes = data["reference"]["scenes"]
+        .as_array()
+        .expect("per-scene renders");
+    assert_eq!(scenes.len(), npf::cli::view::scenes().len());
+    for (k, s) in scenes.iter().enumerate() {
+        let db = s["psnr_db"].as_f64().unwrap();
+        eprintln!("scene {k}: rendering PSNR {db:.2} dB");
+        assert!(
+            db > 35.0,
+            "scene {k}: the fit renders {db} dB from its own table"
+        );
+    }
+    assert!(
+        data["reference"]["evaluation"]["render_psnr_db"]
+            .as_f64()
+            .unwrap()
+            > 35.0
+    );
     // nothing fetched: the one URL is the SVG namespace's name
     let urls = html.matches("http://").count() + html.matches("https://").count();
     let namespace = html.matches("http://www.w3.org/2000/svg").count();

@@ -16,7 +16,9 @@ use crate::bsdf::{Bsdf, NpfBxdf};
 use crate::evaluation::Reference;
 use crate::model::{DiffuseForm, Model};
 use crate::modelfile;
-use crate::render::{difference_rgb8, EnvQuadrature, Image, RenderOptions, Scene};
+use crate::render::{
+    difference_rgb8, psnr, render_scenes, EnvQuadrature, Image, RenderOptions, Scene,
+};
 use base64::Engine;
 use clap::Args;
 use npf_data_loaders::atomic::write_bytes_atomic;
@@ -109,14 +111,29 @@ pub fn run(args: ViewArgs) -> CliResult {
     if let Some((path, (table, samples))) = &reference {
         let table_bsdf = super::table_bsdf(table);
         let r = Reference::new(table_bsdf, samples, CPU_RENDER);
-        let (eval, image) = r
+        let (eval, _) = r
             .evaluate(file.fit.as_ref().map_or(85.0, |f| f.max_theta_deg), &bsdf)
             .map_err(|e| model_err(&e))?;
+        // Every scene of the page's menu, table and fit (one environment
+        // integral per pixel for all of them); the first is compare's.
+        let list: Vec<Scene> = scenes().into_iter().map(|(_, s)| s).collect();
+        let refs = render_scenes(CPU_RENDER, &list, table_bsdf);
+        let fits = render_scenes(CPU_RENDER, &list, &bsdf);
+        let per_scene = refs
+            .iter()
+            .zip(&fits)
+            .map(|(a, b)| {
+                Ok(json!({
+                    "image": png_uri(a)?,
+                    "fit_image": png_uri(b)?,
+                    "difference": diff_uri(a, b)?,
+                    "psnr_db": psnr(a, b).map_err(|e| model_err(&e))?,
+                }))
+            })
+            .collect::<Result<Vec<Value>, CliError>>()?;
         page.reference = Some(json!({
             "name": path.display().to_string(),
-            "image": png_uri(&r.image)?,
-            "fit_image": png_uri(&image)?,
-            "difference": diff_uri(&r.image, &image)?,
+            "scenes": per_scene,
             "difference_gain": DIFF_GAIN,
             "evaluation": eval,
         }));

@@ -317,9 +317,6 @@ function setUpSphere() {
     return;
   }
   const sceneSel = $("scene");
-  DATA.scenes.forEach((s, k) => el("option", { value: k }, sceneSel, s.name));
-  // #scene=K and #nt=N choose the first render's scene and strata.
-  if (params.scene && DATA.scenes[params.scene]) sceneSel.value = params.scene;
   if (params.nt) {
     const sel = $("n-theta");
     if (![...sel.options].some((o) => o.value === params.nt)) el("option", {}, sel, params.nt);
@@ -354,7 +351,7 @@ function setUpSphere() {
       const dt = performance.now() - t0;
       batch = Math.max(1, Math.min(256, Math.round(batch * (dt > 40 ? 0.5 : dt < 15 ? 2 : 1))));
       $("sphere-caption").textContent = finished
-        ? "WebGL render of the exported GLSL evaluator (" + view.dirs.length + " directions, " + Math.round(performance.now() - started) + " ms); drag to move the key light"
+        ? "WebGL render of the exported GLSL evaluator (" + view.dirs.length + (view.dirs.length === 1 ? " direction, " : " directions, ") + Math.round(performance.now() - started) + " ms); drag to move the key light"
         : "rendering: " + view.done + " of " + view.dirs.length + " directions";
       if (!finished) frame = requestAnimationFrame(tick);
     } catch (e) {
@@ -427,22 +424,28 @@ function setUpTables() {
   }
 }
 
+// The reference and the fit in the scene the sphere's menu shows (npf's
+// CPU renders, embedded for every scene).
 function setUpReference() {
   const r = DATA.reference;
   if (!r) { $("reference-section").style.display = "none"; return; }
   const box = $("reference");
-  const fig = (src, caption) => {
+  const imgs = [];
+  const fig = (caption) => {
     const f = el("figure", {}, box);
-    el("img", { class: "sphere", src, width: 256, height: 256, alt: caption }, f);
+    imgs.push(el("img", { class: "sphere", width: 256, height: 256, alt: caption }, f));
     el("figcaption", {}, f, caption);
   };
-  fig(r.image, "reference: " + r.name);
-  fig(r.fit_image, "the fit (npf's CPU render, same scene)");
-  fig(r.difference, "|difference| x " + r.difference_gain);
+  fig("reference: " + r.name);
+  fig("the fit (npf's CPU render)");
+  fig("|difference| x " + r.difference_gain);
   const e = r.evaluation, m = e.metrics;
   const t = el("table", {}, box);
+  const psnrRow = el("tr", {}, t);
+  el("th", {}, psnrRow, "rendering PSNR, this scene");
+  const psnrCell = el("td", {}, psnrRow);
   fillTable(t, [
-    ["rendering PSNR", fmt(e.render_psnr_db) + " dB"],
+    ["rendering PSNR, first scene", fmt(e.render_psnr_db) + " dB (npf compare's)"],
     ["numerical PSNR", fmt(e.numeric_psnr_db) + " dB"],
     ["cosine-weighted RMSE", fmt(m.cos_rmse) + " 1/sr (relative " + fmt(m.rel_cos_rmse) + ")"],
     ["log(1 + f cos) RMSE", fmt(m.log_rmse)],
@@ -450,7 +453,18 @@ function setUpReference() {
     ["samples", m.samples + " (theta <= " + m.max_theta_deg + " deg)"],
     ["renders", DATA.cpu.res + " px, " + DATA.cpu.n_theta + " environment strata"],
   ]);
+  const show = () => {
+    const k = parseInt($("scene").value || "0", 10);
+    const s = r.scenes[k] || r.scenes[0];
+    imgs[0].src = s.image;
+    imgs[1].src = s.fit_image;
+    imgs[2].src = s.difference;
+    psnrCell.textContent = fmt(s.psnr_db) + " dB (" + DATA.scenes[k].name + ")";
+  };
+  $("scene").addEventListener("input", show);
+  referenceShow = show;
 }
+let referenceShow = () => {};
 
 // ---- Plots ---------------------------------------------------------------
 const CHANNEL = ["#d62728", "#2ca02c", "#1f77b4"];
@@ -563,8 +577,17 @@ function setUpFactors() {
   fillTable(t, [["d (1/sr)", F.diffuse.map(fmt).join(" ")]].concat(F.s.map((s, m) => ["s, lobe " + (m + 1), s.map(fmt).join(" ")])));
 }
 
+// The scene menu (the sphere and the reference follow it); #scene=K
+// chooses the first.
+function setUpScenes() {
+  const sel = $("scene");
+  DATA.scenes.forEach((s, k) => el("option", { value: k }, sel, s.name));
+  const k = hashParams().scene;
+  if (k && DATA.scenes[k]) sel.value = k;
+}
+
 function main() {
-  const steps = [setUpTables, setUpReference, setUpSphere, setUpPolar, setUpFactors];
+  const steps = [setUpScenes, setUpTables, setUpReference, setUpSphere, setUpPolar, setUpFactors, () => referenceShow()];
   for (const step of steps) {
     try {
       step();
