@@ -25,7 +25,7 @@ enum Command {
     Reconstruct(cli::reconstruct::ReconstructArgs),
     /// Evaluate a model at given directions.
     Eval(cli::eval::EvalArgs),
-    /// Write a model for a renderer: .bsdf (RGL tensor file) or .binary (MERL table).
+    /// Write a model for a renderer: .bsdf (RGL tensor file), .binary (MERL table), .glsl (GLSL functions), .h (C99 header) or .brdf (BRDF Explorer).
     Export(cli::export::ExportArgs),
     /// The main job on self-made data: tabulate an analytic BRDF, fit it, export, reconstruct.
     Demo(cli::demo::DemoArgs),

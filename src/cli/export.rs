@@ -1,5 +1,6 @@
 //! `npf export MODEL -o OUT`: a model in a renderer's format, chosen by
-//! OUT's extension (`.bsdf`, `.binary`; see docs/export.md).
+//! OUT's extension (`.bsdf`, `.binary`, `.glsl`, `.h`, `.brdf`; see
+//! docs/export.md and docs/shader_export.md).
 
 use super::{check_outputs, CliError, CliResult};
 use crate::export::{export, ExportError, ExportOptions, Format, RglOptions};
@@ -13,7 +14,9 @@ use std::time::Instant;
 pub struct ExportArgs {
     /// Model file (.json or .npfb).
     pub model: PathBuf,
-    /// Output file: .bsdf (RGL tensor file, Mitsuba 3 / pbrt-v4) or .binary (MERL table).
+    /// Output file; its extension picks the format: .bsdf (RGL tensor file, Mitsuba 3 / pbrt-v4),
+    /// .binary (MERL table), .glsl (GLSL eval/pdf/sample functions), .h (C99 header with the
+    /// same three functions) or .brdf (BRDF Explorer analytic file).
     #[arg(short, long)]
     pub output: PathBuf,
     /// .bsdf: write `spectra` + `wavelengths` (Smits RGB upsampling; pbrt-v4, Mitsuba spectral variants) instead of `rgb`.

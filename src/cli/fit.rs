@@ -10,6 +10,10 @@ use clap::Args;
 use npf_data_loaders::MeasuredSamples;
 use std::path::PathBuf;
 
+/// The help heading of the tuning knobs: `npf fit -h` leaves them out,
+/// `--help` lists them under it (docs/fitting.md gives their effects).
+pub const ADVANCED: &str = "Advanced (tuning; defaults are measured, docs/fitting.md)";
+
 /// The library's defaults, which every flag below shows and falls back to.
 fn defaults() -> FitConfig {
     FitConfig::default()
@@ -31,85 +35,105 @@ pub struct FitFlags {
     pub weighting: Weighting,
     /// Least floor of the compressive weight (cosine-weighted 1/sr).
     #[arg(long, default_value_t = defaults().epsilon)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub epsilon: f64,
     /// The compressive floor as a fraction of the data's median
     /// cosine-weighted value (the floor is the larger of this times the
     /// median and --epsilon; 0: --epsilon alone). 0.3 suits tables with
     /// exactly-black cells, such as RGL's (docs/fitting.md).
     #[arg(long, default_value_t = defaults().epsilon_median)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub epsilon_median: f64,
     /// The same fraction for untrusted tables: clamped (at least 1 in 2,000
     /// of a channel's cells exactly 0) or, with --grazing-trust, not
     /// reciprocal at grazing angles; the larger of the two applies (0:
     /// off; docs/fitting.md).
     #[arg(long, default_value_t = defaults().epsilon_median_untrusted)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub epsilon_median_untrusted: f64,
     /// Grazing trust from the data (0: off): a table without clamped cells whose
     /// grazing cells' reciprocity asymmetry (upper quartile) is below this is fitted
     /// to 89 degrees with weights tapering from 85, others keep --max-theta
     /// (docs/fitting.md).
     #[arg(long, default_value_t = defaults().grazing_trust)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub grazing_trust: f64,
     /// Below this half angle (degrees) compressive weights use the mean
     /// value over phi_d of each (theta_h, theta_d) row (0: off).
     #[arg(long, default_value_t = defaults().pool_scale_below.unwrap_or(0.0))]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub pool_scale_below: f64,
     /// The same for untrusted tables (see --epsilon-median-untrusted); the
     /// larger of the two applies (0: off; docs/fitting.md).
     #[arg(long, default_value_t = defaults().pool_scale_below_untrusted.unwrap_or(0.0))]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub pool_scale_below_untrusted: f64,
     /// Grazing cut-off: leave out samples with theta_i or theta_o above this (degrees).
     #[arg(long, default_value_t = defaults().max_theta)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub max_theta: f64,
     /// D cells above this half angle (degrees) hold the last free cell's value.
     #[arg(long, default_value_t = defaults().max_theta_h)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub max_theta_h: f64,
     /// Stop after this many sweeps.
     #[arg(long, default_value_t = defaults().max_sweeps)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub max_sweeps: usize,
     /// Stop when a sweep lowers the objective by less than this fraction.
     #[arg(long, default_value_t = defaults().tol)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub tol: f64,
     /// How G control points are updated.
     #[arg(long, value_enum, default_value_t = defaults().g_method)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub g_method: GMethod,
     /// Gaussian smoothing of G after each update (sigma in control points), kept only if it does not raise the objective.
     #[arg(long)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub smooth_g: Option<f64>,
     /// D may not rise with theta_h past this angle (degrees), which stops D
     /// and G trading scale at grazing angles [default: the library's, 60].
     #[arg(long, conflicts_with = "free_d_tail")]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub d_monotone_from: Option<f64>,
     /// Leave the D tail unconstrained.
     #[arg(long)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub free_d_tail: bool,
     /// Disable the extrapolation step between sweeps (plain AWLS).
     #[arg(long)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub no_accelerate: bool,
     /// Hold G on the full sample set where the coarse level fitted it: on,
     /// off (default: on for isotropic tables; G is smooth, so the coarse
     /// level's samples pin it down, and its pass is half a full sweep).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub keep_coarse_g: Option<bool>,
     /// Tolerance of the full set's sweeps when G is kept from the coarse
     /// level (they move D, F, d and s only; --tol applies otherwise)
     /// [default: twice --tol]
     #[arg(long)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub kept_g_tol: Option<f64>,
     /// After the fit, scale d and every lobe's s per channel to the
     /// table's energy (cells past theta_h = 5 deg; only when a channel is
     /// off by more than 5 %): on, off (default: on for untrusted tables,
     /// whose compressive fit reflects too little light; docs/fitting.md).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub energy_scale: Option<bool>,
     /// Joint Gauss-Newton steps between sweeps: on, off (default: on for
     /// anisotropic tables only).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub gauss_newton: Option<bool>,
     /// Joint Gauss-Newton steps on the coarse levels once their sweeps
     /// crawl (8 CG iterations a step), whatever --gauss-newton says of the
     /// full set: on, off (default: off).
     #[arg(long, value_name = "on|off", value_parser = clap::builder::BoolishValueParser::new(), hide_possible_values = true)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub coarse_gauss_newton: Option<bool>,
     /// Worker threads (0: all cores). Results are identical for any count.
     #[arg(long, default_value_t = defaults().threads)]
@@ -120,21 +144,26 @@ pub struct FitFlags {
     /// Coarse-to-fine: decimation factors of the sample sets fitted before
     /// the full one, coarsest first (e.g. 8 or 16,4; 1: no coarse level).
     #[arg(long, value_delimiter = ',', default_values_t = defaults().coarse)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub coarse: Vec<usize>,
     /// Tolerance of the coarse levels.
     #[arg(long, default_value_t = defaults().coarse_tol)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub coarse_tol: f64,
     /// Sweep limit of the coarse levels.
     #[arg(long, default_value_t = defaults().coarse_max_sweeps)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub coarse_max_sweeps: usize,
     /// Grazing taper: past this angle (degrees) a sample's weight falls
     /// linearly to 0 at the horizon; use with a cut-off near 90, e.g.
     /// `--max-theta 89 --taper-from 80` (see docs/fitting.md).
     #[arg(long)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub taper_from: Option<f64>,
     /// Masking-shadowing form: separable G(theta_i) G(theta_o) (the
     /// paper's) or height-correlated G2 = 1 / (1 + Lambda_i + Lambda_o).
     #[arg(long, value_enum, default_value_t = defaults().masking)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub masking: crate::model::Masking,
     /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to the
     /// model (eval, sampler and .bsdf/.binary exports use it; the shader
@@ -142,6 +171,7 @@ pub struct FitFlags {
     /// tables already hold multiple scattering, and on fitted materials the
     /// term costs 14-25 dB rendering PSNR (docs/fitting.md).
     #[arg(long)]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub compensate: bool,
 }
 
@@ -314,6 +344,7 @@ pub struct FitArgs {
     pub budget: Option<usize>,
     /// Metric --budget minimises.
     #[arg(long, value_enum, default_value_t = BudgetMetric::LogRmse, requires = "budget")]
+    #[arg(hide_short_help = true, help_heading = ADVANCED)]
     pub budget_metric: BudgetMetric,
 }
 
