@@ -15,16 +15,13 @@ fn help(args: &[&str]) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-/// The subcommands, as `npf --help` lists them.
-fn subcommands() -> Vec<String> {
-    let text = help(&["--help"]);
-    let block = text
-        .split("Commands:")
-        .nth(1)
-        .unwrap()
-        .split("\n\n")
-        .next()
-        .unwrap();
+/// The subcommands `npf ARGS --help` lists (`help` left out).
+fn subcommands(args: &[&str]) -> Vec<String> {
+    let mut args = args.to_vec();
+    args.push("--help");
+    let text = help(&args);
+    let block = text.split("Commands:").nth(1).unwrap();
+    let block = block.split("\n\n").next().unwrap();
     block
         .lines()
         .filter_map(|l| l.split_whitespace().next())
@@ -59,19 +56,9 @@ fn short_help_lists_at_most_15_options_and_long_help_all() {
     for sub in subs {
         // `energy` has subcommands of its own
         let nested: Vec<Vec<String>> = if sub == "energy" {
-            let text = help(&["energy", "--help"]);
-            let block = text
-                .split("Commands:")
-                .nth(1)
-                .unwrap()
-                .split("\n\n")
-                .next()
-                .unwrap();
-            block
-                .lines()
-                .filter_map(|l| l.split_whitespace().next())
-                .filter(|c| *c != "help")
-                .map(|c| vec![sub.clone(), c.to_string()])
+            subcommands(&["energy"])
+                .into_iter()
+                .map(|c| vec![sub.clone(), c])
                 .collect()
         } else {
             vec![vec![sub.clone()]]
