@@ -233,7 +233,6 @@ pub fn fit_ggx(samples: &MeasuredSamples, options: SampleOptions) -> Result<GgxF
     if vals[best] < f_best {
         la = grid[best];
     }
-    drop(eval);
     let (params, objective) = ggx_solve(&set, la.exp());
     Ok(GgxFit {
         params,

@@ -347,7 +347,8 @@ fn print_stages(factor: usize, history: &[crate::solver::SweepReport]) {
     if !crate::phases::enabled() {
         return;
     }
-    let kinds: [(&str, fn(&Stage) -> bool); 7] = [
+    type Kind = (&'static str, fn(&Stage) -> bool);
+    let kinds: [Kind; 7] = [
         ("D", |s| matches!(s, Stage::D(_))),
         ("F", |s| matches!(s, Stage::F)),
         ("G", |s| matches!(s, Stage::G(_))),

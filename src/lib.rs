@@ -1,4 +1,10 @@
 #![warn(missing_docs)]
+// `!(x > 0.0)` is how this crate refuses NaN together with a range (a
+// NaN compares false): the negation is the point, not an oversight.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Per-channel and per-lobe loops index several parallel arrays with one
+// index (channel c of value, weight and residual): the index says which.
+#![allow(clippy::needless_range_loop)]
 //! npf: fit measured BRDFs with the shared-factor non-parametric microfacet model.
 //!
 //! Data flow, one module per concept:

@@ -1384,8 +1384,8 @@ mod tests {
             9007199254740993.0,
             9.3e18,
             -9.3e18,
-            9.223372036854775807e18,
-            -9.223372036854775808e18,
+            9.223_372_036_854_776e18,  // i64::MAX as f64 (2^63)
+            -9.223_372_036_854_776e18, // i64::MIN as f64
             1e300,
             -1e300,
             f64::INFINITY,
@@ -1411,10 +1411,11 @@ mod tests {
     #[test]
     fn bucket_sort_is_a_sort() {
         let n = 300_000u64;
-        let cases: [(&str, Box<dyn Fn(u64) -> u128>); 3] = [
+        type Case = (&'static str, Box<dyn Fn(u64) -> u128>);
+        let cases: [Case; 3] = [
             (
                 "spread",
-                Box::new(|i| (mix(i) as u128) << 64 | mix(i + n) as u128),
+                Box::new(move |i| (mix(i) as u128) << 64 | mix(i + n) as u128),
             ),
             ("ties", Box::new(|i| ((mix(i / 3) >> 40) as u128) << 96)),
             ("crowded", Box::new(|i| 7u128 << 96 | (mix(i) % 5) as u128)),

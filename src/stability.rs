@@ -179,7 +179,7 @@ impl Case {
                 if lost {
                     return None;
                 }
-                let mut s = s.clone();
+                let mut s = *s;
                 if self.noise > 0.0 {
                     for v in s.rgb.iter_mut() {
                         *v *= (self.noise * gaussian(&mut rng) - 0.5 * self.noise.powi(2)).exp();

@@ -292,9 +292,9 @@ fn masked_scales_stay_exactly_zero() {
         },
     );
     for (m, lobe) in res.model.lobes.iter().enumerate() {
-        for c in 0..3 {
-            if !mask[m][c] {
-                assert_eq!(lobe.s[c].to_bits(), 0, "lobe {m} channel {c}");
+        for (c, (&on, s)) in mask[m].iter().zip(lobe.s).enumerate() {
+            if !on {
+                assert_eq!(s.to_bits(), 0, "lobe {m} channel {c}");
             }
         }
     }

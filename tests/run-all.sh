@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The project's one test command (README; .ci/run calls exactly this).
-#  1. Rust: unit, integration and doc tests of every crate in the workspace.
+#  1. Rust: unit, integration and doc tests of every crate in the workspace,
+#     then clippy (warnings are errors).
 #  2. Python and renderer tests (python/tests), in a local venv this script
 #     makes itself (numpy, pytest, Mitsuba 3 from PyPI; the npf package when
 #     there is a pyproject.toml), plus the Debian tools they need.
@@ -29,6 +30,9 @@ done < python/deb-packages.txt
 export NPF_REQUIRE_TOOLS=1
 
 cargo test --workspace --release
+
+# Lints: the workspace stays clippy-clean (warnings are errors).
+cargo clippy --workspace --all-targets -q -- -D warnings
 
 if [ -d python/tests ]; then
     venv="${NPF_TEST_VENV:-target/test-venv}"

@@ -161,7 +161,8 @@ pub fn draw<DB: DrawingBackend>(
         "alpha",
         "integral of f cos cos",
     )?;
-    let series: [(&str, RGBColor, fn(&FurnacePoint) -> f64); 3] = [
+    type Series = (&'static str, RGBColor, fn(&FurnacePoint) -> f64);
+    let series: [Series; 3] = [
         ("single scattering", RGBColor(128, 128, 128), |p| p.single),
         ("compensation f_ms", BLUE, |p| p.compensation),
         ("sum (pi)", RED, FurnacePoint::sum),

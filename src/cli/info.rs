@@ -113,8 +113,8 @@ pub fn run(args: InfoArgs) -> CliResult {
         return Ok(());
     }
     let table = npf_data_loaders::Table::read(path, args.format.map(Into::into))?;
-    let (name, dims, cells, cell): (_, _, _, Box<dyn Fn(usize) -> Option<[f64; 3]>>) = match &table
-    {
+    type Cell<'a> = Box<dyn Fn(usize) -> Option<[f64; 3]> + 'a>;
+    let (name, dims, cells, cell): (_, _, _, Cell) = match &table {
         npf_data_loaders::Table::Merl(t) => (
             "MERL table",
             "90 x 90 x 180 (theta_h, theta_d, phi_d)",

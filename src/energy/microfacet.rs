@@ -109,8 +109,8 @@ mod tests {
     #[test]
     fn ggx_sigma_matches_the_seed_denominator() {
         // The seed writes G1/(2μ) = 1/(μ + sqrt(α² + (1 − α²)μ²)).
-        for &(mu, a) in &[(0.3, 0.5), (0.9, 0.1), (0.0, 0.7)] {
-            let seed = 1.0 / (mu + (a * a + (1.0 - a * a) * mu * mu as f64).sqrt());
+        for &(mu, a) in &[(0.3f64, 0.5f64), (0.9, 0.1), (0.0, 0.7)] {
+            let seed = 1.0 / (mu + (a * a + (1.0 - a * a) * mu * mu).sqrt());
             assert!((1.0 / (2.0 * Ndf::Ggx.sigma(mu, a)) - seed).abs() < 1e-12);
         }
     }

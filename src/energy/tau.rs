@@ -41,6 +41,7 @@ pub struct TauFit {
 
 /// Runs the walks for a study: `n_mu` Gauss–Legendre incidence cosines per
 /// roughness, `paths` walks each.
+#[allow(clippy::too_many_arguments)] // the study's parameters, each a CLI flag
 pub fn run_study(
     surface: Surface,
     ndf: Ndf,

@@ -190,7 +190,7 @@ pub(crate) const SNAP: f64 = 1e-7;
 
 fn linear_stencil(p: f64, n: usize) -> Stencil {
     match linear_weights(p, n) {
-        (i, _, w1) if w1 == 0.0 => Stencil::single(i),
+        (i, _, 0.0) => Stencil::single(i),
         (i, w0, w1) => Stencil::pair(i, w0, i + 1, w1),
     }
 }

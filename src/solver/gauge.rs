@@ -14,6 +14,7 @@
 //! - F_C: F_C(theta_d = 0) = 1 per channel (its maximum instead when F_C(0)
 //!   is not above 1e-6 of that maximum), so s_C^m carries colour and F its
 //!   angular shape.
+//!
 //! Entries no sample constrains are filled: D and F from the nearest entry
 //! with data; G before the first constrained point takes that value, after
 //! the last it holds its value up to the grazing cut-off, and past the cut

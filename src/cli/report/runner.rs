@@ -219,6 +219,9 @@ pub fn job_order(configs: &[Configuration], materials: usize) -> Vec<(usize, usi
         .collect()
 }
 
+/// What `run_all` hands back: the rows and the convergence runs.
+type RowsAndConvergence = (Vec<Row>, Vec<(String, Convergence)>);
+
 /// Run the plan on `threads` OS threads, appending every finished row to
 /// rows.jsonl. Returns the rows (in completion order) and the convergence
 /// runs (in configuration order). (Outer rayon workers waiting on an inner
@@ -230,7 +233,7 @@ pub fn run_all(
     threads: usize,
     bar: &indicatif::ProgressBar,
     factor_models: &FactorModels,
-) -> Result<(Vec<Row>, Vec<(String, Convergence)>), CliError> {
+) -> Result<RowsAndConvergence, CliError> {
     let jobs = &plan.jobs;
     let next = AtomicUsize::new(0);
     let n_conv = plan.convergence.as_ref().map_or(0, |(_, c)| c.len());
