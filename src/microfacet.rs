@@ -148,7 +148,7 @@ impl GgxParams {
 /// The values of `f(theta)` at a grid's nodes (the same profile in every
 /// phi column), as a model stores them.
 pub fn tabulate(grid: Grid, f: &dyn Fn(f64) -> f64) -> Vec<f32> {
-    crate::solver::init::theta_table(grid, f)
+    crate::grid::theta_table(grid, f)
         .into_iter()
         .map(|v| v as f32)
         .collect()

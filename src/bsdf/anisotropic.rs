@@ -15,7 +15,10 @@
 //! UTIA layout) split into [`THETA_SUB`] parts over [0, 90] degrees, its phi
 //! intervals into [`PHI_SUB`].
 
-use super::{cosine_hemisphere, reflect, BsdfSample, Component, GL4_W, GL4_X, SELECTION_FLOOR};
+use super::hemisphere::{cosine_hemisphere, reflect};
+use super::interface::{BsdfSample, Component};
+use super::quadrature::{GL4_W, GL4_X};
+use super::selection::SELECTION_FLOOR;
 use crate::model::Model;
 use crate::sampling::PiecewiseConstant2D;
 use npf_data_loaders::geometry::{dot, Vec3};

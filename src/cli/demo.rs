@@ -2,7 +2,8 @@
 //! GGX + Lambert BRDF as a MERL table, fits it, writes the model in both
 //! forms and its reconstruction, and prints the errors.
 
-use super::fit::{fit_with_progress, print_summary, FitFlags};
+use super::fit_args::FitFlags;
+use super::fit_table::{fit_with_progress, print_summary};
 use super::{check_outputs, CliError, CliResult};
 use crate::fit::ModelKind;
 use crate::metrics::compare;

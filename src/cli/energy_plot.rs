@@ -2,7 +2,7 @@
 //! our fit and the seed's, and the white-furnace curves (single scattering,
 //! compensation, sum).
 
-use super::charts::ensure_font;
+use super::fonts::ensure_font;
 use crate::energy::albedo::AlbedoTable;
 use crate::energy::compensation::FurnacePoint;
 use crate::energy::fit::{fit_avg, seed_fit};
@@ -16,7 +16,7 @@ pub const SIZE: (u32, u32) = (1500, 480);
 
 /// Registers a TrueType font as plotters' "sans-serif" (plotters built with
 /// ab_glyph has no font of its own). `explicit` wins over the usual places
-/// (`charts::ensure_font`).
+/// (`fonts::ensure_font`).
 pub fn register_font(explicit: Option<&std::path::Path>) -> Result<(), String> {
     let Some(p) = explicit else {
         return if ensure_font() {

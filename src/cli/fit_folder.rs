@@ -11,7 +11,8 @@
 //! record, rewritten (atomically) by each run. Several tables are fitted
 //! at once ([`Plan`]); lines and rows keep the name order.
 
-use super::fit::{fit_table, FitArgs, ModelForm};
+use super::fit_args::{FitArgs, ModelForm};
+use super::fit_table::fit_table;
 use super::{CliError, CliResult};
 use crate::modelfile;
 use std::panic::AssertUnwindSafe;

@@ -10,13 +10,14 @@
 //! Every file is written atomically, and never over an existing file
 //! unless asked to.
 
+mod error;
 pub mod rgl;
 pub mod shader;
 
 use crate::model::Model;
-use npf_data_loaders::LoadError;
 use std::path::Path;
 
+pub use error::ExportError;
 pub use rgl::RglOptions;
 
 /// An export format.
@@ -32,26 +33,6 @@ pub enum Format {
     Glsl,
     /// Dependency-free C header (`.h`).
     CHeader,
-}
-
-/// Why a model could not be exported.
-#[derive(Debug, thiserror::Error)]
-pub enum ExportError {
-    /// The extension names no export format.
-    #[error("unknown export format {0:?} (use .bsdf, .binary, .brdf, .glsl or .h)")]
-    UnknownFormat(String),
-    /// A shader or header export failed.
-    #[error(transparent)]
-    Shader(#[from] shader::ShaderError),
-    /// An option out of range.
-    #[error("{0}")]
-    Option(String),
-    /// The model is not valid.
-    #[error("invalid model: {0}")]
-    Model(String),
-    /// Writing the file.
-    #[error(transparent)]
-    Write(#[from] LoadError),
 }
 
 impl Format {
@@ -115,6 +96,7 @@ mod tests {
     use super::*;
     use crate::model::Layout;
     use crate::synth::known_factor_model;
+    use npf_data_loaders::LoadError;
     use npf_data_loaders::TensorFile;
 
     fn small() -> ExportOptions {

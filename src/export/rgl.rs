@@ -33,7 +33,7 @@ use npf_data_loaders::rgl::{Field, TensorFile};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
-use super::ExportError;
+use super::error::ExportError;
 
 /// Default least weight of the constant (diffuse-like) part of the proxy
 /// NDF ([`RglOptions::broad`]).

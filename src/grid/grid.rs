@@ -155,6 +155,13 @@ impl Grid {
     }
 }
 
+/// A table of f(theta) on a grid's nodes (the same profile in every phi column).
+pub fn theta_table(grid: Grid, f: &dyn Fn(f64) -> f64) -> Vec<f64> {
+    (0..grid.len())
+        .map(|k| f(grid.theta.node(grid.theta_index(k))))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,5 +19,5 @@ pub mod grid;
 pub mod stencil;
 
 pub use axis::{catmull_rom_stencil, Axis, PhiAxis};
-pub use grid::Grid;
+pub use grid::{theta_table, Grid};
 pub use stencil::{Stencil, StencilTable, Weight, MAX_SUPPORT};

@@ -16,9 +16,17 @@
 //! That order puts each D cell's samples (one theta_h band) together and
 //! each F cell's in 90 runs, so D and F passes read memory forward.
 
-use super::*;
+use super::incidence::GUse;
+use super::incidence::{GIncidence, Incidence};
+use super::order::key_part;
+use super::set::{check_options, merge_into, outside_cut, FitSet, SampleError, SampleStats, Tails};
+use super::weighting::{pool_limit, SampleOptions};
+use crate::grid::{Grid, Stencil, StencilTable};
+use crate::model::Layout;
 use npf_data_loaders::merl::MERL_ROWS;
 use npf_data_loaders::MerlTable;
+use npf_data_loaders::{MeasuredSamples, MerlSamples};
+use rayon::prelude::*;
 
 /// Runs of equal keys in one theta_h band of the grid (90 rows), in the
 /// generic order restricted to each row.
@@ -372,6 +380,7 @@ pub fn same_up_to_order(a: &FitSet, b: &FitSet) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::samples::Weighting;
 
     /// A synthetic table with scattered missing cells.
     fn table() -> MerlTable {

@@ -24,9 +24,8 @@ pub(crate) fn available() -> bool {
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use crate::grid::Weight;
-    use crate::solver::g_update::cubic_terms;
-    use crate::solver::g_update::GWork;
-    use crate::solver::updates::{GramInput, MAXK, SIZE};
+    use crate::solver::g_work::{cubic_terms, GWork};
+    use crate::solver::gram::{GramInput, MAXK, SIZE};
     use std::arch::x86_64::*;
 
     // GWork's four f64 fields are one 32-byte row.
@@ -212,7 +211,7 @@ pub(crate) use x86::{apply_step, cubic_sums, gram_sums};
 mod tests {
     use super::*;
     use crate::grid::Weight;
-    use crate::solver::g_update::{apply_entry, cubic_sums as scalar_sums, GWork};
+    use crate::solver::g_work::{apply_entry, cubic_sums as scalar_sums, GWork};
 
     /// Rows, weights and a scrambled list of distinct samples from a fixed
     /// generator (values over many magnitudes, some zero).
@@ -294,8 +293,8 @@ mod tests {
     fn gram_sums_are_bit_identical_to_the_scalar_loop() {
         use crate::model::{Layout, Masking};
         use crate::samples::{FitSet, SampleOptions};
+        use crate::solver::gram::{gram_sums as scalar, GramInput};
         use crate::solver::state::Cache;
-        use crate::solver::updates::{gram_sums as scalar, GramInput};
         if !available() {
             return;
         }
@@ -331,7 +330,7 @@ mod tests {
                     basis: &basis,
                     masking,
                 };
-                let bits = |a: [f64; crate::solver::updates::SIZE]| a.map(f64::to_bits);
+                let bits = |a: [f64; crate::solver::gram::SIZE]| a.map(f64::to_bits);
                 // SAFETY (each call): AVX2 was detected.
                 let want = scalar::<1>(g, range.clone());
                 assert_eq!(

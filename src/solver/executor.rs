@@ -1,6 +1,7 @@
 //! The loop around the sweep, with observers (argmin's executor split).
 
-use super::g_update::{update_g, GPassStats};
+use super::g_update::update_g;
+use super::g_work::GPassStats;
 use super::gauge::{d_measure, fill_unconstrained, normalise, Scales};
 use super::init::initial_factors;
 use super::state::{set_residual, squared_error, Cache, Factors, State};

@@ -14,7 +14,7 @@
 //! dE < 0, so the objective never rises.
 
 use super::chunked_sum;
-use super::g_update::{apply_work, GPassStats, GWork};
+use super::g_work::{apply_work, GPassStats, GWork};
 use super::state::State;
 use crate::model::height_correlated;
 use crate::samples::FitSet;

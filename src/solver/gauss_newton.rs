@@ -345,9 +345,6 @@ impl Default for Damping {
     }
 }
 
-/// Conjugate-gradient iterations per step by default
-/// ([`FitOptions::gauss_newton_cg`]).
-pub const CG_ITERATIONS: usize = 25;
 /// Sets of at most this many samples keep every sample's partials for the
 /// step's passes (336 bytes a sample: 34 MB at the limit; a 1/32 MERL
 /// level holds ~35 k samples).

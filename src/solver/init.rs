@@ -20,14 +20,8 @@ pub fn start_alphas(lobes: usize) -> Vec<f64> {
     }
 }
 
+pub use crate::grid::theta_table;
 pub use crate::microfacet::{ggx_d, ggx_g1};
-
-/// A table of f(theta) on a grid's nodes (the same profile in every phi column).
-pub fn theta_table(grid: Grid, f: &dyn Fn(f64) -> f64) -> Vec<f64> {
-    (0..grid.len())
-        .map(|k| f(grid.theta.node(grid.theta_index(k))))
-        .collect()
-}
 
 /// The starting factors of a fit with `lobes` lobes (isotropic shapes on
 /// either layout: the first sweeps give them their azimuthal structure).

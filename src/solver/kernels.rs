@@ -4,7 +4,8 @@
 //! nothing here is a second implementation.
 
 use super::executor::{d_monotone_from, gauge_objective};
-use super::g_update::{update_g, GWork};
+use super::g_update::update_g;
+use super::g_work::GWork;
 use super::gauge::d_measure;
 use super::init::initial_factors;
 use super::state::State;

@@ -10,7 +10,8 @@
 //! caller ([`super::diffuse::refresh`]) re-solves d and s for it and keeps
 //! it only if the objective fell, so the objective never rises.
 
-use super::g_update::{apply_entry, best_cubic_step, cubic_sums, GWork};
+use super::g_update::best_cubic_step;
+use super::g_work::{apply_entry, cubic_sums, GWork};
 use super::state::State;
 use crate::grid::{Axis, Grid, StencilTable};
 use crate::model::{separable_mean, DiffuseForm};

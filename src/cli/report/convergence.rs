@@ -2,7 +2,7 @@
 //! sweeps and seconds for a few configurations on one material.
 
 use super::configs::Configuration;
-use super::runner::{one_thread, Workspace};
+use super::workspace::{one_thread, Workspace};
 use crate::evaluation::Reference;
 use crate::fit::fit_model;
 use serde::{Deserialize, Serialize};

@@ -1,10 +1,10 @@
 //! The report's Markdown (`report.md`) and the thresholds by which it calls
 //! a fit failed or two fits tied.
 
+use super::args::ReportArgs;
 use super::configs::Configuration;
 use super::convergence::Convergence;
 use super::rows::Row;
-use super::ReportArgs;
 use std::path::{Path, PathBuf};
 
 /// The median (NaN for none); sorts `v`.

@@ -11,13 +11,16 @@
 //! One module per job: [`configs`] (what is compared), [`runner`] (the job
 //! scheduler), [`rows`] (rows.jsonl and the results files), [`convergence`]
 //! (the convergence experiment), [`markdown`] (report.md and the failure
-//! thresholds); the charts are in `cli::charts`.
+//! thresholds); the charts are in [`charts`].
 
+pub mod args;
+pub mod charts;
 pub mod configs;
 pub mod convergence;
 pub mod markdown;
 pub mod rows;
 pub mod runner;
+pub mod workspace;
 
 pub use configs::{configurations, Configuration};
 pub use convergence::{Checkpoint, Convergence};
@@ -28,62 +31,10 @@ use super::{CliError, CliResult};
 use crate::evaluation::Reference;
 use crate::fit::FitConfig;
 use crate::render::RenderOptions;
-use clap::Args;
-use runner::{io_err, write_file, FactorModels, Plan, Workspace};
+pub use args::ReportArgs;
+use runner::{FactorModels, Plan};
 use std::path::PathBuf;
-
-/// `npf report`'s arguments.
-#[derive(Args, Debug)]
-pub struct ReportArgs {
-    /// Folder of MERL tables (*.binary).
-    #[arg(required_unless_present = "list")]
-    pub data: Option<PathBuf>,
-    /// Report folder (created; must be empty or absent unless --force).
-    #[arg(short, long, required_unless_present = "list")]
-    pub output: Option<PathBuf>,
-    /// Configurations to run, comma-separated (default: all; see --list).
-    #[arg(long, value_delimiter = ',')]
-    pub configs: Vec<String>,
-    /// Only these materials (file stems), comma-separated.
-    #[arg(long, value_delimiter = ',')]
-    pub materials: Vec<String>,
-    /// Fits run at the same time (0: one per core).
-    #[arg(long, default_value_t = 0)]
-    pub jobs: usize,
-    /// Render resolution (pixels square).
-    #[arg(long, default_value_t = 128)]
-    pub res: usize,
-    /// Environment quadrature strata in elevation.
-    #[arg(long, default_value_t = 24)]
-    pub n_theta: usize,
-    /// Override every configuration's sweep limit (quick trial runs).
-    #[arg(long)]
-    pub max_sweeps: Option<usize>,
-    /// Material of the convergence chart (default: gold-metallic-paint if present, else the first).
-    #[arg(long)]
-    pub convergence: Option<String>,
-    /// Skip the convergence chart (it refits three configurations several times).
-    #[arg(long)]
-    pub no_convergence: bool,
-    /// Fit nothing: write the report from REPORT_DIR/rows.jsonl (every fit a
-    /// run finished, e.g. one stopped early), the saved models and
-    /// convergence.json.
-    #[arg(long)]
-    pub from_rows: bool,
-    /// With --from-rows: recompute every measure from the saved models
-    /// (after a change to the measures; fit times and sweeps are kept).
-    #[arg(long, requires = "from_rows")]
-    pub reevaluate: bool,
-    /// List the configurations and exit.
-    #[arg(long)]
-    pub list: bool,
-    /// Write into an existing, non-empty report folder.
-    #[arg(long)]
-    pub force: bool,
-    /// No progress bar.
-    #[arg(short, long)]
-    pub quiet: bool,
-}
+use workspace::{io_err, write_file, Workspace};
 
 /// Run `npf report`.
 pub fn run(args: ReportArgs) -> CliResult {
@@ -318,18 +269,18 @@ pub fn run(args: ReportArgs) -> CliResult {
     rows::write_results(out, &rows)?;
     // Charts.
     let mut chart_notes = Vec::new();
-    if crate::cli::charts::ensure_font() {
+    if crate::cli::fonts::ensure_font() {
         let names: Vec<&str> = configs.iter().map(|c| c.name).collect();
-        crate::cli::charts::speed_accuracy(out, &rows, &names)?;
+        charts::speed_accuracy(out, &rows, &names)?;
         let models = factor_models
             .into_inner()
             .map_err(|_| CliError::Message("a worker failed".into()))?;
         for (m, config, model) in &models {
             let path = out.join(&materials[*m].0).join(format!("factors-{config}"));
-            crate::cli::charts::factor_plot(&path, &materials[*m].0, config, model)?;
+            charts::factor_plot(&path, &materials[*m].0, config, model)?;
         }
         if let (Some(conv), Some(m)) = (&conv, conv_material) {
-            crate::cli::charts::convergence(out, &materials[m].0, conv)?;
+            charts::convergence(out, &materials[m].0, conv)?;
         }
     } else {
         chart_notes.push(

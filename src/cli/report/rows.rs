@@ -2,7 +2,7 @@
 //! stopped early can be reported with `--from-rows`), and the results are
 //! written as `results.json` and `results.csv`.
 
-use super::runner::write_file;
+use super::workspace::write_file;
 use crate::cli::{CliError, CliResult};
 use crate::evaluation::Evaluation;
 use serde::{Deserialize, Serialize};

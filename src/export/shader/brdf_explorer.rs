@@ -7,7 +7,7 @@
 
 use super::emit::{Dialect, Source};
 use super::glsl::{banner, eval_function};
-use super::{prepare, ShaderError, ShaderOptions};
+use super::prepare::{prepare, ShaderError, ShaderOptions};
 use crate::model::Model;
 
 /// The model as a BRDF Explorer `.brdf` file. `BRDF` returns f (no cosine)

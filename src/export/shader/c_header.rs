@@ -3,7 +3,7 @@
 //! arithmetic in double (so eval matches `Model::eval` to rounding).
 
 use super::emit::{Dialect, Source};
-use super::{prepare, ShaderError, ShaderOptions};
+use super::prepare::{prepare, ShaderError, ShaderOptions};
 use crate::model::Model;
 
 /// The model as a C99 header:

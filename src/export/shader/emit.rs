@@ -5,20 +5,11 @@
 //! atan2, fmod) are small per-dialect helpers, so every formula below is
 //! shared text.
 
-use super::sampler::{SamplerTables, VIEWS, VIEW_MAX_DEG};
+use super::sampler::{separable_p, SamplerTables, VIEWS, VIEW_MAX_DEG};
 use crate::grid::{Axis, Grid};
-use crate::model::{DiffuseForm, Model};
+use crate::model::Model;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::fmt::Write;
-
-/// P of a separable diffuse form (the one non-Lambertian form the
-/// exports evaluate).
-pub(super) fn separable_p(model: &Model) -> Option<&[f32]> {
-    match &model.diffuse_form {
-        DiffuseForm::Separable { p } => Some(p),
-        _ => None,
-    }
-}
 
 /// Node snap of the linear axes (`grid::axis`): a coordinate within this
 /// of a node reads that node alone.

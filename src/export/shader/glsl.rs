@@ -3,7 +3,7 @@
 //! the text can be pasted into any GLSL 1.30+ shader.
 
 use super::emit::{Dialect, Source};
-use super::{prepare, ShaderError, ShaderOptions};
+use super::prepare::{prepare, ShaderError, ShaderOptions};
 use crate::model::Model;
 
 /// A summary comment (shared with the BRDF Explorer file).

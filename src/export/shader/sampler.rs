@@ -4,7 +4,7 @@
 //! exactly the density `sample` draws with whatever the rounding.
 
 use crate::bsdf::{half_vector_quadrature, GL4_W, GL4_X};
-use crate::model::Model;
+use crate::model::{DiffuseForm, Model};
 use npf_data_loaders::geometry::Angles;
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -191,7 +191,7 @@ fn selection(model: &Model, has_table: &[bool]) -> Vec<f32> {
         );
         // The diffuse term's exact albedo: pi d for Lambert (as always
         // computed), pi d P(theta_o) for the separable form.
-        let diffuse = match super::emit::separable_p(model) {
+        let diffuse = match separable_p(model) {
             None => luminance(model.diffuse.map(f64::from)) * PI,
             Some(_) => luminance(model.diffuse_albedo(theta_o)),
         };
@@ -217,4 +217,13 @@ fn selection(model: &Model, has_table: &[bool]) -> Vec<f32> {
         );
     }
     table
+}
+
+/// P of a separable diffuse form (the one non-Lambertian form the
+/// exports evaluate).
+pub(super) fn separable_p(model: &Model) -> Option<&[f32]> {
+    match &model.diffuse_form {
+        DiffuseForm::Separable { p } => Some(p),
+        _ => None,
+    }
 }

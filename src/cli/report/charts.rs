@@ -1,7 +1,9 @@
 //! The report's charts (plotters), each written as SVG and PNG.
 
-use super::report::{median, Convergence, Row};
-use super::{CliError, CliResult};
+use super::convergence::Convergence;
+use super::markdown::median;
+use super::rows::Row;
+use crate::cli::{CliError, CliResult};
 use crate::model::Model;
 use npf_data_loaders::atomic::write_bytes_atomic;
 use plotters::coord::Shift;
@@ -12,32 +14,6 @@ type R = Result<(), String>;
 
 fn e<T: std::fmt::Debug>(x: T) -> String {
     format!("{x:?}")
-}
-
-/// Where fonts usually live; the first usable one is registered.
-const FONT_CANDIDATES: &[&str] = &[
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/Library/Fonts/Arial.ttf",
-    "C:\\Windows\\Fonts\\arial.ttf",
-];
-
-/// Register a system sans-serif font for plotters; false if none is found.
-pub fn ensure_font() -> bool {
-    static OK: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *OK.get_or_init(|| {
-        for c in FONT_CANDIDATES {
-            if let Ok(bytes) = std::fs::read(c) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                    return true;
-                }
-            }
-        }
-        false
-    })
 }
 
 /// Draw with the same function into an SVG and a PNG next to `stem`.
@@ -63,7 +39,7 @@ fn save_both(
         png(root.clone()).map_err(|m| fail("png", m))?;
         root.present().map_err(|x| fail("png", e(x)))?;
     }
-    let bytes = super::png::encode_png(size.0, size.1, &buf).map_err(|m| fail("png", m))?;
+    let bytes = crate::cli::png::encode_png(size.0, size.1, &buf).map_err(|m| fail("png", m))?;
     write_bytes_atomic(&stem.with_extension("png"), true, &bytes)?;
     Ok(())
 }
