@@ -1,4 +1,5 @@
-//! No two source files import each other, directly or around a circle.
+//! No two source files import each other, directly or around a circle,
+//! and none is over 1,000 lines.
 //!
 //! Every crate of the repository is read with `syn`, from its root
 //! (lib.rs, main.rs) down its `mod` declarations. A file depends on another
@@ -402,6 +403,57 @@ fn roots() -> Vec<PathBuf> {
     .map(|r| base.join(r))
     .filter(|p| p.exists())
     .collect()
+}
+
+/// Most lines a source file may have: past it, a file holds more than one
+/// concept and is split by concept (docs/architecture.md).
+const MAX_LINES: usize = 1000;
+
+/// Every Rust file of the repository (sources, tests, benches, examples,
+/// fuzz targets) is at most [`MAX_LINES`] long.
+#[test]
+fn no_source_file_is_over_the_line_limit() {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            let name = e.file_name();
+            if p.is_dir() && name != "target" && !name.to_string_lossy().starts_with('.') {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let base = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for d in [
+        "src",
+        "data-loaders",
+        "python/src",
+        "tests",
+        "benches",
+        "examples",
+        "fuzz",
+    ] {
+        walk(&base.join(d), &mut files);
+    }
+    assert!(files.len() > 100, "found only {} files", files.len());
+    let long: Vec<String> = files
+        .iter()
+        .filter_map(|f| {
+            let n = std::fs::read_to_string(f).ok()?.lines().count();
+            (n > MAX_LINES)
+                .then(|| format!("{}: {n} lines", f.strip_prefix(base).unwrap_or(f).display()))
+        })
+        .collect();
+    assert!(
+        long.is_empty(),
+        "files over {MAX_LINES} lines:\n{}",
+        long.join("\n")
+    );
 }
 
 #[test]
