@@ -151,3 +151,43 @@ fn export_help_names_every_format() {
         assert!(st.success() && out.exists(), "npf export to .{ext}");
     }
 }
+
+/// docs/fitting.md's table of options has a row for every option
+/// `npf fit --help` lists (and none that it does not), each naming where
+/// its effect is measured.
+#[test]
+fn fitting_docs_list_every_fit_option() {
+    let docs = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/fitting.md"))
+        .expect("docs/fitting.md");
+    let start = docs
+        .find("## Every option of `npf fit`")
+        .expect("the options section");
+    let section = &docs[start..];
+    let section = &section[..section[3..].find("\n## ").map_or(section.len(), |e| e + 3)];
+    let rows: Vec<&str> = section.lines().filter(|l| l.starts_with("| `-")).collect();
+    let mut documented = BTreeSet::new();
+    for row in &rows {
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        // | option | default | what | effect |
+        assert_eq!(cells.len(), 6, "row {row:?}");
+        assert!(
+            cells[2..5].iter().all(|c| !c.is_empty()),
+            "row {row:?} has an empty cell"
+        );
+        for name in cells[1].split(',') {
+            let name = name.trim().trim_matches('`');
+            if name.starts_with("--") {
+                documented.insert(name.to_string());
+            }
+        }
+    }
+    // Long options only (possible-value lines start with "- ").
+    let listed: BTreeSet<String> = options(&help(&["fit", "--help"]))
+        .into_iter()
+        .filter(|o| o.starts_with("--") && o != "--help")
+        .collect();
+    assert_eq!(
+        documented, listed,
+        "docs/fitting.md's options table and npf fit --help differ"
+    );
+}
