@@ -656,7 +656,7 @@ impl NpfBxdf {
     }
 
     /// Draws wi for wo: `u_lobe` picks the component, `u` (two numbers in
-    /// [0, 1)) the direction within it. See [`BxdfSample`] for draws that
+    /// [0, 1)) the direction within it. See [`BxdfSample`](crate::bsdf::BxdfSample) for draws that
     /// leave the hemisphere.
     pub fn sample(&self, wo: Vec3, u_lobe: f64, u: [f64; 2]) -> BsdfSample {
         if let Some(a) = &self.aniso {

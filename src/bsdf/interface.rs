@@ -15,7 +15,7 @@ pub enum Component {
     Lobe(usize),
 }
 
-/// One draw of a BSDF. [`NpfBxdf::sample`] also reports draws that leave
+/// One draw of a BSDF. [`NpfBxdf::sample`](crate::bsdf::NpfBxdf::sample) also reports draws that leave
 /// the upper hemisphere (or a `wo` at or below the horizon): they have
 /// `pdf = 0` and zero `f`/`weight` (their direction is reported, but they
 /// carry no light); [`Bsdf::sample`] returns `None` for them.
@@ -33,7 +33,7 @@ pub struct BsdfSample {
     pub component: Component,
 }
 
-/// The name [`NpfBxdf`] has always used for its draws.
+/// The name [`NpfBxdf`](crate::bsdf::NpfBxdf) has always used for its draws.
 pub type BxdfSample = BsdfSample;
 
 impl BsdfSample {

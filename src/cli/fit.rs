@@ -1,5 +1,5 @@
 //! `npf fit IN.binary -o MODEL.{json,npfb}`: the front door, which sends a
-//! folder to [`super::fit_folder`] and a table to [`super::fit_table`].
+//! folder to [`super::fit_folder`] and a table to `fit_table.rs`.
 
 use super::fit_table::{fit_table, print_summary};
 use super::{check_outputs, CliError, CliResult};

@@ -76,19 +76,19 @@ pub struct FitConfig {
     /// no rendering can see) dominate the objective (BENCHMARKS.md, issue 16).
     pub epsilon_median: f64,
     /// The same fraction for data that do not look like a trustworthy
-    /// measurement: clamped (at least [`CLAMPED_ZERO_FRACTION`] of a
+    /// measurement: clamped (at least [`CLAMPED_ZERO_FRACTION`](crate::fit::CLAMPED_ZERO_FRACTION) of a
     /// channel's samples inside the cut-off exactly 0, as where a
     /// resampling clamped negative values) or, with `grazing_trust` on,
-    /// not reciprocal at grazing angles ([`GrazingRule::asymmetry`] at
+    /// not reciprocal at grazing angles ([`GrazingRule::asymmetry`](crate::fit::GrazingRule::asymmetry) at
     /// least `grazing_trust`). Such a table's near-black cells are no level
     /// to fit relatively. The larger of the two fractions applies
     /// ([`FitConfig::floor_rule`]; 0: off).
     pub epsilon_median_untrusted: f64,
     /// Grazing trust decided by the data: a table that is not clamped
-    /// ([`FloorRule::clamped`]) and whose grazing cells agree with their reciprocal
+    /// ([`FloorRule::clamped`](crate::fit::FloorRule::clamped)) and whose grazing cells agree with their reciprocal
     /// partners (upper quartile of the relative asymmetry below this) is fitted to
-    /// [`GRAZING_MAX_THETA`] with weights tapering from
-    /// [`GRAZING_TAPER_FROM`] ([`FitConfig::grazing_rule`]); other tables at
+    /// [`GRAZING_MAX_THETA`](crate::fit::GRAZING_MAX_THETA) with weights tapering from
+    /// [`GRAZING_TAPER_FROM`](crate::fit::GRAZING_TAPER_FROM) ([`FitConfig::grazing_rule`]); other tables at
     /// `max_theta`. 0: off. Only when `taper_from` is not set.
     pub grazing_trust: f64,
     /// Grazing cut-off (degrees): samples with theta_i or theta_o above it
@@ -155,7 +155,7 @@ pub struct FitConfig {
     /// Pooled compressive weights below this half angle (degrees;
     /// [`SampleOptions::pool_scale_below_deg`]); `None`: off.
     pub pool_scale_below: Option<f64>,
-    /// The pooling angle for untrusted tables ([`FloorRule::untrusted`]);
+    /// The pooling angle for untrusted tables ([`FloorRule::untrusted`](crate::fit::FloorRule::untrusted));
     /// the larger of the two applies; `None`: off.
     pub pool_scale_below_untrusted: Option<f64>,
     /// Add Kulla-Conty's multiple-scattering term of the fitted lobes to
@@ -291,7 +291,7 @@ pub enum FitError {
         value: f64,
     },
     /// The input could not be read again for the error measures after the
-    /// fit ([`fit_owned`]): it vanished or changed meanwhile.
+    /// fit ([`fit_owned`](crate::fit::fit_owned)): it vanished or changed meanwhile.
     #[error("{source_name}: cannot measure the fit's errors: {problem}")]
     Remeasure {
         /// The samples' source.

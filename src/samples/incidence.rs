@@ -119,7 +119,7 @@ impl<T> DisjointWrites<T> {
     }
 }
 
-/// Whether a fit on a [`FitSet`] updates G (and needs its sample lists).
+/// Whether a fit on a [`FitSet`](crate::samples::FitSet) updates G (and needs its sample lists).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GUse {
     /// G is updated: every point's sample list is built.

@@ -112,7 +112,7 @@ pub enum SampleData<'a> {
     /// Sample records, from any source.
     Records(Cow<'a, MeasuredSamples>),
     /// A MERL table's grid: its set is built by index arithmetic
-    /// ([`FitSet::build_merl`]), the same set as from its records.
+    /// ([`FitSet::build_merl`](crate::samples::FitSet::build_merl)), the same set as from its records.
     Merl(Box<MerlSamples>),
 }
 

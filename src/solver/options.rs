@@ -78,7 +78,7 @@ pub struct FitOptions {
     #[serde(default)]
     pub diffuse: DiffuseKind,
     /// After each sweep, try a joint damped Gauss-Newton step over every
-    /// factor ([`gauss_newton`]), kept only if it lowers the objective.
+    /// factor ([`gauss_newton`](crate::solver::gauss_newton)), kept only if it lowers the objective.
     #[serde(default)]
     pub gauss_newton: bool,
     /// Conjugate-gradient iterations (passes over the samples) per joint
@@ -91,7 +91,7 @@ pub struct FitOptions {
     #[serde(default)]
     pub gauss_newton_below: Option<f64>,
     /// How each lobe combines G at the two directions: separable (the
-    /// paper's) or height-correlated, whose G pass is [`g2_update`].
+    /// paper's) or height-correlated, whose G pass is [`g2_update`](crate::solver::g2_update).
     #[serde(default)]
     pub masking: crate::model::Masking,
     /// Hold a separable diffuse form's P where it starts (the full set
