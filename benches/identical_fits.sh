@@ -65,7 +65,7 @@ for t in "${tables[@]}"; do
         s=$(date +%s.%N)
         "$work/npf-$side" fit "$t" -o "$work/$name.$side.npfb" --quiet "${flags[@]}"
         "$work/npf-$side" fit "$t" -o "$work/$name.$side.json" --quiet "${flags[@]}"
-        line+=("$(echo "$(date +%s.%N) - $s" | bc)")
+        line+=("$(awk -v a="$s" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')")
     done
     if ! cmp -s "$work/$name.before.npfb" "$work/$name.after.npfb"; then
         result="DIFFERENT (.npfb)"

@@ -6,9 +6,6 @@
 //! baseline (its fit, its tabulated model and its [`crate::bsdf::Bsdf`]),
 //! and the energy toolkit, so every part of npf means the same GGX.
 
-// `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use crate::grid::Grid;
 use crate::model::{Layout, Lobe, Model};
 use npf_data_loaders::geometry::{Angles, Vec3};

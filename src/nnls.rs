@@ -4,9 +4,6 @@
 //! parameters), so 2^k Cholesky solves cost nothing and, unlike clamping an
 //! unconstrained solution, the optimum is exact.
 
-// `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use nalgebra::{DMatrix, DVector};
 
 /// argmin over x >= 0 of x'Gx - 2 r'x, by trying every support set. The

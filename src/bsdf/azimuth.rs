@@ -1,9 +1,6 @@
 //! The half-vector azimuth cells of the tabulated samplers and branch-free
 //! (sin, cos) of an azimuth, scalar and in lanes (the same bits).
 
-// `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::f64x2::floor_index;
 use super::lanes::{Lanes, Lanes4};
 use npf_data_loaders::geometry::Vec3;

@@ -2,9 +2,6 @@
 //! operations as [`NpfBxdf::draw`], bit for bit (tested), for the batch
 //! sampler.
 
-// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::azimuth::{azimuth_centre, turn_sin_cos_lanes, EDGE_COS};
 use super::draw_geometry::*;
 use super::factor::*;

@@ -2,9 +2,6 @@
 //! tables' Jacobian to solid angle, the reflection of a drawn half vector,
 //! the azimuth frame of a view.
 
-// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::azimuth::azimuth_sin_cos;
 use super::lanes::Lanes;
 use npf_data_loaders::geometry::Vec3;

@@ -11,9 +11,6 @@
 //! component-selection probabilities at the same 16 view angles from each
 //! component's directional albedo. See docs/sampling.md.
 
-// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::anisotropic::AnisoSampler;
 use super::azimuth::{azimuth_cell, azimuth_centre, PHI_CELLS};
 use super::draw_geometry::*;

@@ -1,9 +1,6 @@
 //! Directions on the hemisphere: the cosine-weighted draw and its pdf
 //! (the fallback of every sampler), mirror reflection about a half vector.
 
-// `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::azimuth::turn_sin_cos;
 use super::interface::{Bsdf, BsdfSample, Component};
 use super::lanes;

@@ -1,9 +1,6 @@
 //! The BSDF interface in pbrt-v4's shape: [`Bsdf`] (eval, sample, pdf), the
 //! sample it draws, and its errors.
 
-// `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
 
 /// Which part of a BSDF's sampling mixture drew a sample.

@@ -2,9 +2,6 @@
 //! t = sin^2 theta_h and relative azimuth, per view angle, proportional to
 //! the lobe's visible normals weighted by G and F.
 
-// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::azimuth::PHI_CELLS;
 use super::quadrature::{GL4_W, GL4_X};
 use crate::model::Model;

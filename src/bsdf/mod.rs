@@ -19,9 +19,6 @@
 //! renderer ([`crate::render`]), the comparison ([`crate::evaluation`]) and
 //! the directional [`albedo`] take any of them.
 
-// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 mod anisotropic;
 mod azimuth;
 mod batch;
