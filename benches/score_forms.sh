@@ -2,8 +2,9 @@
 # Fit every MERL table of a folder with several `npf fit` option sets and
 # score each fit with the independent scorer (../shared/tools/score.py):
 # render PSNR, log RMSE, and the fit's whole-process wall time and peak
-# memory. One line per table and option set; the option sets of one table
-# run one after the other, so their times are comparable.
+# memory, and for `--model auto` the form it chose. One line per table and
+# option set; the option sets of one table run one after the other, so
+# their times are comparable.
 #
 #   benches/score_forms.sh DATA_DIR [LABEL=OPTIONS ...]
 #   benches/score_forms.sh /tmp/merl default= separable="--diffuse separable"
@@ -21,7 +22,7 @@ score=${SCORE:-$PWD/../shared/tools/score.py}
 python=${PYTHON:-python3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-printf '%-24s %-12s %8s %9s %7s %7s\n' table options psnr_db log_rmse wall_s peak_mb
+printf '%-24s %-12s %8s %9s %7s %7s  %s\n' table options psnr_db log_rmse wall_s peak_mb chosen
 for ref in "$data"/*.binary; do
     name=$(basename "$ref" .binary)
     for set in "$@"; do
@@ -34,7 +35,8 @@ for ref in "$data"/*.binary; do
         "$python" "$score" "$ref" "$fit.binary" | "$python" -c "
 import json, sys
 d = json.load(sys.stdin)
-print('%-24s %-12s %8.3f %9.5f %7.2f %7.0f' % ('$name', '$label', d['render_psnr'], d['log_rmse'], $wall, $kb / 1024))"
+auto = json.load(open('$fit.json'))['fit'].get('selection', {}).get('auto', {})
+print('%-24s %-12s %8.3f %9.5f %7.2f %7.0f  %s' % ('$name', '$label', d['render_psnr'], d['log_rmse'], $wall, $kb / 1024, auto.get('chosen', '-')))"
         rm -f "$fit.binary"
     done
 done

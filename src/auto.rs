@@ -28,7 +28,7 @@ pub const MARGIN_DB: f64 = 0.1;
 /// Sweeps each candidate runs on the decimated level before it is judged
 /// (the default runs the level to its own limits); the chosen one then
 /// runs on to them. Measured on four MERL tables, 15, 30 and a full level
-/// rank the candidates alike (BENCHMARKS.md, issue 43).
+/// rank the candidates alike (BENCHMARKS.md as of 4d8d1ee, issue 43).
 pub const SCREEN_SWEEPS: usize = 25;
 
 /// The candidate forms for a configuration, the default first: the

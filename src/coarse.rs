@@ -108,7 +108,7 @@ pub struct Schedule<'a> {
     /// at least one level runs). G is smooth (a few Catmull-Rom points per
     /// lobe), so a 32nd of the samples pins it down; D's narrow peaks are
     /// what needs them all. The G pass is half a full sweep's time
-    /// (BENCHMARKS.md, issue 15, "G from the coarse level"). A separable
+    /// (BENCHMARKS.md as of 4d8d1ee, issue 15, "G from the coarse level"). A separable
     /// diffuse form's P (16 nodes) is held with it
     /// ([`FitOptions::hold_p`]).
     pub keep_g: bool,
@@ -119,7 +119,7 @@ pub struct Schedule<'a> {
     /// [`LEVEL_GN_CG`] iterations, once a sweep gains less than
     /// [`LEVEL_GN_BELOW`]) whatever the fit's options say; the full set
     /// follows them. A step costs about two coarse sweeps but sees the
-    /// coupling AWLS crawls along (BENCHMARKS.md, g30).
+    /// coupling AWLS crawls along (BENCHMARKS.md as of 4d8d1ee, g30).
     pub gauss_newton: bool,
 }
 

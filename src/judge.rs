@@ -60,7 +60,7 @@ pub fn scenes() -> Vec<(&'static str, Scene)> {
 /// environment quadrature (it converges on sharp highlights, where the
 /// sphere grid reads a peak at isolated points), 12 strata. On the 16
 /// MERL tables auto chooses as it does at 64 px and 24 strata, in about
-/// a quarter of the renders' time (BENCHMARKS.md, issue 43).
+/// a quarter of the renders' time (BENCHMARKS.md as of 4d8d1ee, issue 43).
 pub fn judge_options() -> RenderOptions {
     RenderOptions {
         res: 32,

@@ -115,7 +115,7 @@ fn known_2010_parameter_model_is_fitted_back() {
 /// extrapolation and, on the anisotropic layout, the joint Gauss-Newton
 /// steps): 5.7e-4 after 100 sweeps; AWLS alone gave 1.51e-3 after 100 and
 /// about 1.0e-3 after 200, its blended lobes separating slowly
-/// (BENCHMARKS.md, "Known-model recovery").
+/// (BENCHMARKS.md as of 4d8d1ee, "Known-model recovery").
 const KNOWN_SWEEPS: usize = 100;
 const KNOWN_REL_RMSE: f64 = 1e-3;
 

@@ -191,3 +191,25 @@ fn fitting_docs_list_every_fit_option() {
         "docs/fitting.md's options table and npf fit --help differ"
     );
 }
+
+#[test]
+fn benchmarks_are_short_and_every_section_has_its_command() {
+    // BENCHMARKS.md holds today's figures (superseded runs live in git
+    // history); a section of figures without the command that gives them
+    // cannot be rerun by anyone.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/BENCHMARKS.md"))
+        .expect("BENCHMARKS.md");
+    let lines = text.lines().count();
+    assert!(lines < 600, "BENCHMARKS.md has {lines} lines (limit 600)");
+    let sections: Vec<&str> = text.split("\n## ").skip(1).collect();
+    assert!(sections.len() >= 10, "only {} sections", sections.len());
+    for section in sections {
+        let title = section.lines().next().unwrap_or_default();
+        // "Tried and not taken" points into git history for its commands.
+        let has_command = section
+            .lines()
+            .any(|l| l.starts_with("    ") && !l.trim().is_empty())
+            || section.contains("git show ");
+        assert!(has_command, "section {title:?} gives no command");
+    }
+}

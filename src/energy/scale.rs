@@ -12,7 +12,7 @@
 //! sqrt(theta_h) di). The peak cells (theta_h below a few degrees) are
 //! left out: their phi_d variation is what no isotropic model can follow
 //! (with them, an albedo ratio costs cc_amber_citrine 1 dB). Measured
-//! choice of the constants: BENCHMARKS.md, "post-fit energy scales".
+//! choice of the constants: BENCHMARKS.md as of 4d8d1ee, "post-fit energy scales".
 
 use crate::metrics::MerlReference;
 use crate::model::Model;
@@ -29,7 +29,7 @@ pub struct EnergyScaleRule {
     pub dead_zone: f64,
 }
 
-/// The default rule: measured on the 26 shared tables (BENCHMARKS.md).
+/// The default rule: measured on the 26 shared tables (BENCHMARKS.md as of 4d8d1ee).
 pub const DEFAULT_RULE: EnergyScaleRule = EnergyScaleRule {
     from_theta_h_deg: 5.0,
     dead_zone: 0.05,

@@ -73,7 +73,7 @@ pub struct FitConfig {
     /// cosine-weighted value: a fit's floor is the larger of `epsilon` and
     /// this times that median (0: `epsilon` alone). A floor far below the
     /// data's typical level lets near-black and exactly-zero cells (which
-    /// no rendering can see) dominate the objective (BENCHMARKS.md, issue 16).
+    /// no rendering can see) dominate the objective (BENCHMARKS.md as of 4d8d1ee, issue 16).
     pub epsilon_median: f64,
     /// The same fraction for data that do not look like a trustworthy
     /// measurement: clamped (at least [`CLAMPED_ZERO_FRACTION`](crate::fit::CLAMPED_ZERO_FRACTION) of a
@@ -123,13 +123,13 @@ pub struct FitConfig {
     pub coarse_tol: f64,
     /// The sweep limit of the decimated levels. A coarse sweep costs about
     /// a 16th of a full one, and a level that stops at its limit leaves the
-    /// rest of a long descent to full sweeps (BENCHMARKS.md, issue 15,
+    /// rest of a long descent to full sweeps (BENCHMARKS.md as of 4d8d1ee, issue 15,
     /// "the extrapolation's tail projection").
     pub coarse_max_sweeps: usize,
     /// Hold G on the full set where the coarse levels fitted it
     /// ([`crate::coarse::Schedule::keep_g`]): `None` does so on isotropic
     /// layouts (measured on the 16 MERL and 10 RGL tables: the G pass was
-    /// half of each full sweep, BENCHMARKS.md issue 15) and updates G on
+    /// half of each full sweep, BENCHMARKS.md as of 4d8d1ee issue 15) and updates G on
     /// anisotropic ones, whose 6 x 48 G tables were not measured this way.
     pub keep_coarse_g: Option<bool>,
     /// The full set's tolerance when G is kept from the coarse level (in
@@ -137,7 +137,7 @@ pub struct FitConfig {
     /// twice `tol`, so a tighter `tol` still tightens it. Measured on the
     /// 16 MERL tables: 6e-3 (twice the default) stops every full set after
     /// 2 sweeps (2-4 at 3e-3) and moves the rendering PSNR by at most
-    /// 0.03 dB (BENCHMARKS.md, "Idle checks of 2026-12-03 night").
+    /// 0.03 dB (BENCHMARKS.md as of 4d8d1ee, "Idle checks of 2026-12-03 night").
     pub kept_g_tol: Option<f64>,
     /// Joint Gauss-Newton steps between sweeps (`solver::gauss_newton`):
     /// `None` uses them on anisotropic layouts only (where AWLS alone
@@ -194,12 +194,12 @@ impl Default for FitConfig {
             accelerate: o.accelerate,
             threads: 0,
             diffuse: o.diffuse,
-            // One level at a 32nd of the samples (BENCHMARKS.md, issue 15),
+            // One level at a 32nd of the samples (BENCHMARKS.md as of 4d8d1ee, issue 15),
             // run to 1e-4: at 1e-3 it stopped on the plateau of a crawl
             // (violet-acrylic: sweep 23 of about 200; the crawl ends 16 %
             // lower), which the full set, holding G, cannot leave;
             // the 100-sweep limit keeps every MERL fit under 2 s (issue 16,
-            // BENCHMARKS.md "Issue 16 under its own protocol").
+            // BENCHMARKS.md as of 4d8d1ee "Issue 16 under its own protocol").
             coarse: vec![32],
             coarse_tol: 1e-4,
             coarse_max_sweeps: 100,
@@ -500,7 +500,7 @@ impl FitConfig {
 }
 
 /// The default [`FitConfig::epsilon_median`]: off. Measured on the 16 MERL
-/// and 10 RGL tables (BENCHMARKS.md, issue 16), 0.3 raises the RGL tables
+/// and 10 RGL tables (BENCHMARKS.md as of 4d8d1ee, issue 16), 0.3 raises the RGL tables
 /// by up to 9 dB but lowers polyurethane-foam by 0.76 dB and
 /// silver-metallic-paint by 0.51, so it is an option, not the default.
 pub const EPSILON_MEDIAN: f64 = 0.0;
@@ -509,14 +509,14 @@ pub const EPSILON_MEDIAN: f64 = 0.0;
 /// tables 0.6 renders better than 0.3 on 6 and than 1.0 on 5 (paper_blue
 /// prefers 0.3); on the 16 MERL tables it changes nothing (none is
 /// untrusted but black-obsidian, and 0.6 of its median is below
-/// `epsilon`). BENCHMARKS.md,
+/// `epsilon`). BENCHMARKS.md as of 4d8d1ee,
 /// issue 16, "data-decided floor and grazing trust".
 pub const EPSILON_MEDIAN_UNTRUSTED: f64 = 0.6;
 
 /// The default [`FitConfig::grazing_trust`]: the upper quartile is
 /// 0.04-0.15 on the 16 MERL tables and 0.26-0.60 on the 10 RGL ones, whose
 /// grazing cells mislead a fit (a tapered fit to 89 degrees gains up to
-/// 2.7 dB on MERL, loses up to 1 dB on RGL). BENCHMARKS.md, issue 16,
+/// 2.7 dB on MERL, loses up to 1 dB on RGL). BENCHMARKS.md as of 4d8d1ee, issue 16,
 /// "data-decided floor and grazing trust".
 pub const GRAZING_TRUST: f64 = 0.2;
 
@@ -526,5 +526,5 @@ pub const GRAZING_TRUST: f64 = 0.2;
 /// its harmonic mean, far below what the renderer sums. On the 10 RGL
 /// tables full-row pooling renders cc_nothern_aurora at 32.3 dB against
 /// 28.9 and chm_mint at 28.0 against 27.1, and no table more than 0.06 dB
-/// lower (BENCHMARKS.md, issue 16, "chm_mint and cc_nothern_aurora").
+/// lower (BENCHMARKS.md as of 4d8d1ee, issue 16, "chm_mint and cc_nothern_aurora").
 pub const POOL_SCALE_BELOW_UNTRUSTED: f64 = 90.0;

@@ -9,7 +9,7 @@
 //!   scalar loop's order (entry 4k and 4k+2 to the even sum, 4k+1 and 4k+3
 //!   to the odd one, one after the other). On white-fabric's coarse level
 //!   the pass's per-entry loops run 0.55 G instructions instead of 0.97
-//!   (BENCHMARKS.md, issue 15, c26).
+//!   (BENCHMARKS.md as of 4d8d1ee, issue 15, c26).
 //! - The (d, s) solve's Gram sums ([`super::updates`]): one row of the
 //!   4 x 4 Gram matrix (3 lobes and the diffuse basis) per register.
 

@@ -2,7 +2,7 @@
 //!
 //! A coarse level's Gauss-Seidel steps are small (a G control point has
 //! ~2,600 entries at 1/32, ~5 us of work): a rayon task per half costs
-//! more in dispatch and wake-up than it saves (BENCHMARKS.md, c27). A
+//! more in dispatch and wake-up than it saves (BENCHMARKS.md as of 4d8d1ee, c27). A
 //! [`Duo`] instead keeps one partner spinning on a job slot while the level
 //! runs: [`Duo::halves`] hands it half of a job, does the other half and
 //! spins until the partner is done (well under a microsecond each way).

@@ -534,7 +534,7 @@ pub(super) fn d_monotone_from(set: &FitSet, deg: Option<f64>) -> usize {
 /// not 11, and renders 0.7 dB better, but the golden-G plain fit of
 /// gold-metallic-paint runs off along the D x G valley again (23.1 dB
 /// against 42.7), even with the trend allowed only for a maximum at
-/// theta_h <= 30 degrees; not kept (BENCHMARKS.md, issue 15, "the
+/// theta_h <= 30 degrees; not kept (BENCHMARKS.md as of 4d8d1ee, issue 15, "the
 /// extrapolation's D cap").
 fn extrapolate(x: &Factors, old: &Factors, beta: f64, monotone_from: usize) -> Factors {
     let mv = |a: f64, b: f64| (a + beta * (a - b)).max(0.0);
