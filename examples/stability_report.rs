@@ -2,11 +2,16 @@
 //! fixed) x lobes (1-3) x weighting, on 1/`--thin` of each table (default 4),
 //! printed as a Markdown table.
 //!
-//!     cargo run --release --example stability_report -- [--thin K] [--sweeps N] [--case SUBSTRING]
+//!     cargo run --release --example stability_report -- [--thin K] [--sweeps N] [--case SUBSTRING] [--grazing-trust A]
+//!
+//! `--grazing-trust A` fits with that threshold of the data-decided grazing
+//! rule (`FitConfig::grazing_trust`; 0 turns the rule off, fitting every
+//! case to 85 degrees as before the rule existed).
 
+use npf::fit::FitConfig;
 use npf::samples::Weighting;
 use npf::solver::GMethod;
-use npf::stability::{cases, run, Config, Outcome};
+use npf::stability::{cases, run_with, Config, Outcome};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -18,6 +23,12 @@ fn main() {
     let thin: usize = opt("--thin").map_or(4, |v| v.parse().expect("--thin K"));
     let sweeps: usize = opt("--sweeps").map_or(50, |v| v.parse().expect("--sweeps N"));
     let filter = opt("--case");
+    let base = FitConfig {
+        grazing_trust: opt("--grazing-trust").map_or(FitConfig::default().grazing_trust, |v| {
+            v.parse().expect("--grazing-trust A")
+        }),
+        ..FitConfig::default()
+    };
     println!("Stability suite: 1/{thin} of each table, at most {sweeps} sweeps, errors against the clean truth within 85 degrees.\n");
     println!("| case | G method | lobes | weighting | sweeps | converged | monotone (max rise / data) | finite | non-negative | degenerate | rel. cos RMSE | log RMSE | seconds |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
@@ -43,7 +54,7 @@ fn main() {
                         lobes,
                         weighting,
                     };
-                    let o = run(&case, &clean, &data, config, sweeps);
+                    let o = run_with(&case, &clean, &data, config, sweeps, &base);
                     all.push(o.clone());
                     if let Some(e) = &o.error {
                         println!(

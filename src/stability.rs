@@ -262,6 +262,21 @@ pub fn run(
     config: Config,
     max_sweeps: usize,
 ) -> Outcome {
+    run_with(case, clean, data, config, max_sweeps, &FitConfig::default())
+}
+
+/// [`run`] on other settings than npf's defaults: `base` gives every
+/// setting but the configuration's lobes, G method and weighting and the
+/// sweep limit (to see, for example, what the data-decided grazing rule
+/// does to a case).
+pub fn run_with(
+    case: &Case,
+    clean: &MeasuredSamples,
+    data: &MeasuredSamples,
+    config: Config,
+    max_sweeps: usize,
+    base: &FitConfig,
+) -> Outcome {
     let t0 = Instant::now();
     let mut out = Outcome {
         case: case.name.to_string(),
@@ -279,13 +294,12 @@ pub fn run(
         log_rmse: f64::NAN,
         seconds: 0.0,
     };
-    // npf's defaults (FitConfig's) with this configuration's choices.
     let fc = FitConfig {
         lobes: config.lobes,
         g_method: config.g_method,
         weighting: config.weighting,
         max_sweeps,
-        ..FitConfig::default()
+        ..base.clone()
     };
     let set = match FitSet::build(data, fc.layout(), fc.sample_options_for(data)) {
         Ok(s) => s,
