@@ -186,6 +186,17 @@ fn grazing_trust_follows_the_reciprocity_of_the_grazing_cells() {
     assert!(rule.trusted);
     assert_eq!(rule.max_theta_deg, GRAZING_MAX_THETA);
     assert_eq!(rule.taper_from_deg, Some(GRAZING_TAPER_FROM));
+    // A cut-off the user chose is kept on trusted data: the rule replaces
+    // only the default one.
+    let chosen = FitConfig {
+        max_theta: 80.0,
+        ..on.clone()
+    };
+    let kept = chosen.grazing_rule(&chosen.floor_rule(&clean));
+    assert!(!kept.trusted);
+    assert_eq!(kept.max_theta_deg, 80.0);
+    assert_eq!(kept.taper_from_deg, None);
+    assert_eq!(chosen.sample_options_for(&clean).max_theta_deg, 80.0);
     // Clamped data are never trusted at grazing angles.
     let clamped = npf::fit::FloorRule {
         clamped: true,

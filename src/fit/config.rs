@@ -89,7 +89,8 @@ pub struct FitConfig {
     /// partners (upper quartile of the relative asymmetry below this) is fitted to
     /// [`GRAZING_MAX_THETA`](crate::fit::GRAZING_MAX_THETA) with weights tapering from
     /// [`GRAZING_TAPER_FROM`](crate::fit::GRAZING_TAPER_FROM) ([`FitConfig::grazing_rule`]); other tables at
-    /// `max_theta`. 0: off. Only when `taper_from` is not set.
+    /// `max_theta`. 0: off. Only when `taper_from` is not set and `max_theta`
+    /// is its default (a cut-off the user chose is kept).
     pub grazing_trust: f64,
     /// Grazing cut-off (degrees): samples with theta_i or theta_o above it
     /// are left out.

@@ -187,13 +187,17 @@ impl FitConfig {
 
     /// The cut-off and taper a fit of `samples` uses: [`GRAZING_MAX_THETA`]
     /// and a taper from [`GRAZING_TAPER_FROM`] when `grazing_trust` is on,
-    /// no taper is set and the data are not untrusted (`floor`, from
+    /// no taper is set, `max_theta` is the default and the data are not untrusted (`floor`, from
     /// [`FitConfig::floor_rule`]: not clamped and the grazing cells'
     /// reciprocity asymmetry below `grazing_trust`); else `max_theta` and
     /// `taper_from`. Depends on the data alone.
     pub fn grazing_rule(&self, floor: &FloorRule) -> GrazingRule {
+        // The rule replaces only the default cut-off: one the user chose
+        // (`--max-theta 80`) is theirs to keep.
+        let default_cut = self.max_theta == SampleOptions::default().max_theta_deg;
         let trusted = self.grazing_trust > 0.0
             && self.taper_from.is_none()
+            && default_cut
             && floor.grazing_asymmetry.is_finite()
             && !floor.untrusted;
         GrazingRule {
