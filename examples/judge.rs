@@ -5,7 +5,7 @@
 //!
 //! NPF_JUDGE_READER=truncate and NPF_JUDGE_ENV=sphere change the reading
 //! of the table and the environment quadrature (see the code).
-use npf::bsdf::{InterpolatedMerl, NpfBxdf};
+use npf::bsdf::{EvaluatedModel, InterpolatedMerl};
 use npf::judge::{judge_options, Judge};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -44,7 +44,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 judge.score(&InterpolatedMerl(&t))
             }
         } else {
-            judge.score(&NpfBxdf::new(npf::modelfile::read(path.as_ref())?.model)?)
+            judge.score(&EvaluatedModel::new(
+                npf::modelfile::read(path.as_ref())?.model,
+            )?)
         };
         let cells = |v: &[f64]| -> String {
             let c: Vec<String> = v.iter().map(|v| format!("{v:.3}")).collect();

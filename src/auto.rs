@@ -10,7 +10,7 @@
 //! Lambert) is not worth its parameters. The model file records the choice
 //! and every candidate's render and table errors (`selection.auto`).
 
-use crate::bsdf::{Bsdf, NpfBxdf};
+use crate::bsdf::{Bsdf, EvaluatedModel};
 use crate::coarse::{CoarseError, LevelsEnd};
 use crate::fit::{
     fit as fit_one, AutoPlan, CandidateRun, FitConfig, FitError, Fitted, ModelKind, Screened,
@@ -195,7 +195,7 @@ pub fn screen(
         };
         let seconds = t.elapsed().as_secs_f64();
         let model = &result.model;
-        let render = match NpfBxdf::new(model.clone()) {
+        let render = match EvaluatedModel::new(model.clone()) {
             Ok(bsdf) => judge.score(&bsdf),
             // Not renderable: never chosen.
             Err(_) => RenderScore {
@@ -313,11 +313,12 @@ fn fit_each(
         let t = std::time::Instant::now();
         let fitted = fit_one(samples, &c, observer)?;
         let seconds = t.elapsed().as_secs_f64();
-        let bsdf =
-            NpfBxdf::new(fitted.result.model.clone()).map_err(|e| FitError::Unrepresentable {
+        let bsdf = EvaluatedModel::new(fitted.result.model.clone()).map_err(|e| {
+            FitError::Unrepresentable {
                 source_name: samples.source.clone(),
                 problem: format!("the {name} candidate cannot be rendered: {e}"),
-            })?;
+            }
+        })?;
         records.push(CandidateRecord {
             name,
             render: judge.score(&bsdf),

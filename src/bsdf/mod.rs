@@ -25,6 +25,7 @@ mod batch;
 mod compensated;
 mod draw4;
 mod draw_geometry;
+mod evaluated;
 mod f64x2;
 mod factor;
 mod flat;
@@ -42,6 +43,7 @@ pub use anisotropic::{AnisoSampler, PHI_SUB, THETA_SUB};
 pub use azimuth::PHI_CELLS;
 pub use batch::{Directions, SampleBatch};
 pub use compensated::Compensated;
+pub use evaluated::EvaluatedModel;
 pub use factor::NpfBxdf;
 pub use flat::{acos, FlatEval, FLAT_LOBES};
 #[cfg(test)]
