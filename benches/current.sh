@@ -7,6 +7,9 @@
 #
 # Steps (all by default, in this order):
 #   forms      benches/score_forms.sh on MERL_DIR and RGL_DIR: every form, scored
+#   time       benches/fit_time.sh: whole-process wall time and peak memory
+#              of the default fit and of --model auto on every MERL_DIR and
+#              RGL_DIR table, 3 runs each, in turn
 #   fit        examples/fit_bench on MERL_DIR: sweeps, objective, errors, memory
 #   folder     one `npf fit FOLDER -o DIR` of 100 tables (the MERL_DIR and
 #              RGL_DIR tables, hard-linked over and over into one folder)
@@ -34,7 +37,7 @@ merl=${1:?usage: benches/current.sh MERL_DIR RGL_DIR OUT_DIR [STEP ...]}
 rgl=${2:?usage: benches/current.sh MERL_DIR RGL_DIR OUT_DIR [STEP ...]}
 out=${3:?usage: benches/current.sh MERL_DIR RGL_DIR OUT_DIR [STEP ...]}
 shift 3
-[ $# -gt 0 ] || set -- forms fit folder aniso bsdf sampling selection stability shader export python knobs
+[ $# -gt 0 ] || set -- forms time fit folder aniso bsdf sampling selection stability shader export python knobs
 mkdir -p "$out"
 cargo build --release -q --examples --bin npf
 npf=$PWD/target/release/npf
@@ -57,6 +60,10 @@ for s in "$@"; do
     forms)
         step forms-merl benches/score_forms.sh "$merl" "${forms[@]}"
         step forms-rgl benches/score_forms.sh "$rgl" "${forms[@]}" ;;
+    time)
+        mkdir -p "$work/all"
+        ln -sf "$(realpath "$merl")"/*.binary "$(realpath "$rgl")"/*.binary "$work/all/"
+        step time benches/fit_time.sh "$work/all" 3 default= auto="--model auto" ;;
     fit) step fit target/release/examples/fit_bench "$merl" ;;
     folder)
         mkdir -p "$work/f100"
