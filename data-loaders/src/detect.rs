@@ -7,7 +7,8 @@
 //! whose size is the *other* format's is refused as ambiguous (pass the
 //! format explicitly); any other extension is decided by size alone; a file
 //! of neither size is refused with what it looks like (its size against both
-//! formats').
+//! formats'). A `.bsdf` file (RGL's tensor format, no `--format`) is read
+//! as its BRDF tabulated on a MERL table's nodes ([`crate::rgl_brdf`]).
 
 use std::path::Path;
 
@@ -94,6 +95,13 @@ impl Table {
     /// Reads `path` as `hint` if given, else as the format
     /// [`Format::detect`] finds; every error names the file.
     pub fn read(path: &Path, hint: Option<Format>) -> Result<Table, LoadError> {
+        // An RGL `.bsdf` file: its BRDF tabulated as a MERL table.
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if hint.is_none() && ext.eq_ignore_ascii_case("bsdf") {
+            return Ok(Table::Merl(
+                crate::rgl_brdf::RglBrdf::read(path)?.to_merl()?,
+            ));
+        }
         let format = match hint {
             Some(f) => f,
             None => {

@@ -14,8 +14,11 @@ pub mod geometry;
 pub mod merl;
 mod planar;
 pub mod rgl;
+pub mod rgl_brdf;
+pub mod rgl_warp;
 pub mod samples;
 pub mod sniff;
+pub mod spectrum;
 pub mod utia;
 
 pub use detect::{Format, Table};

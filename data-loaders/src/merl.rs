@@ -151,26 +151,33 @@ impl MerlTable {
     ///
     /// Values are stored as given: a negative channel makes the cell read as
     /// missing, and a NaN or infinite value makes [`MerlTable::write`] fail.
-    /// Runs serially; `Sync` is required so a parallel version can be added
-    /// without changing callers.
+    /// Runs in parallel over theta_h rows; each cell's value is `f`'s
+    /// alone, so the table does not depend on the threads.
     pub fn from_fn(f: impl Fn(f64, f64, f64) -> Option<[f64; 3]> + Sync) -> Self {
-        let mut raw = vec![0.0; 3 * Self::CELLS];
-        for i_th in 0..Self::RES_THETA_H {
-            for i_td in 0..Self::RES_THETA_D {
-                for i_pd in 0..Self::RES_PHI_D {
-                    let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
-                    let idx = Self::index(i_th, i_td, i_pd);
-                    let v = match f(th, td, pd) {
-                        Some(rgb) => [
-                            rgb[0] / Self::SCALE[0],
-                            rgb[1] / Self::SCALE[1],
-                            rgb[2] / Self::SCALE[2],
-                        ],
-                        None => [Self::MISSING; 3],
-                    };
-                    for (c, x) in v.into_iter().enumerate() {
-                        raw[c * Self::CELLS + idx] = x;
+        use rayon::prelude::*;
+        let row = Self::RES_THETA_D * Self::RES_PHI_D;
+        let rows: Vec<Vec<[f64; 3]>> = (0..Self::RES_THETA_H)
+            .into_par_iter()
+            .map(|i_th| {
+                let mut out = Vec::with_capacity(row);
+                for i_td in 0..Self::RES_THETA_D {
+                    for i_pd in 0..Self::RES_PHI_D {
+                        let (th, td, pd) = Self::node_angles(i_th, i_td, i_pd);
+                        out.push(match f(th, td, pd) {
+                            Some(rgb) => std::array::from_fn(|c| rgb[c] / Self::SCALE[c]),
+                            None => [Self::MISSING; 3],
+                        });
                     }
+                }
+                out
+            })
+            .collect();
+        let mut raw = vec![0.0; 3 * Self::CELLS];
+        for (i_th, values) in rows.iter().enumerate() {
+            for (k, v) in values.iter().enumerate() {
+                let idx = i_th * row + k;
+                for (c, x) in v.iter().enumerate() {
+                    raw[c * Self::CELLS + idx] = *x;
                 }
             }
         }

@@ -36,6 +36,7 @@ mod lanes;
 mod lobe_tables;
 mod measured;
 mod quadrature;
+mod rgl;
 mod selection;
 mod utia;
 

@@ -1,15 +1,19 @@
 //! `npf eval MODEL THETA_I PHI_I THETA_O PHI_O`: model values at directions.
 
 use super::{CliError, CliResult};
+use crate::bsdf::Bsdf;
 use crate::modelfile;
 use clap::Args;
-use npf_data_loaders::geometry::spherical;
+use npf_data_loaders::geometry::{spherical, Vec3};
+use npf_data_loaders::rgl_brdf::RglBrdf;
 use std::path::PathBuf;
 
 /// `npf eval`'s arguments.
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Model file (.json or .npfb).
+    /// Model file (.json or .npfb), or an RGL .bsdf file (its BRDF as
+    /// Mitsuba 3's measured plugin evaluates it, in RGB; the view, theta_o
+    /// phi_o, is the file's conditioning direction).
     pub model: PathBuf,
     /// Directions in degrees, four numbers per configuration:
     /// theta_i phi_i theta_o phi_o [theta_i phi_i theta_o phi_o ...];
@@ -40,7 +44,17 @@ pub fn run(args: EvalArgs) -> CliResult {
             }
         }
     }
-    let model = modelfile::read(&args.model)?.model;
+    let is_bsdf = args
+        .model
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("bsdf"));
+    let eval: Box<dyn Fn(Vec3, Vec3) -> [f64; 3]> = if is_bsdf {
+        let b = RglBrdf::read(&args.model)?;
+        Box::new(move |wo, wi| b.eval(wo, wi))
+    } else {
+        let model = modelfile::read(&args.model)?.model;
+        Box::new(move |wo, wi| model.eval(wo, wi))
+    };
     println!("theta_i,phi_i,theta_o,phi_o,r,g,b");
     for q in args.angles.chunks(4) {
         let wi = spherical(q[0].to_radians(), q[1].to_radians());
@@ -50,7 +64,7 @@ pub fn run(args: EvalArgs) -> CliResult {
         let v = if q[0] >= 90.0 || q[2] >= 90.0 {
             [0.0; 3]
         } else {
-            model.eval(wo, wi)
+            eval(wo, wi)
         };
         println!(
             "{},{},{},{},{:.9e},{:.9e},{:.9e}",

@@ -221,8 +221,10 @@ impl FitFlags {
 #[derive(Args, Debug)]
 pub struct FitArgs {
     /// Measured BRDF: MERL .binary (isotropic layout) or UTIA .bin
-    /// (anisotropic layout, 2010 parameters for three lobes); or a folder,
-    /// whose every .binary and .bin table is fitted into the -o folder.
+    /// (anisotropic layout, 2010 parameters for three lobes), or an
+    /// isotropic RGL .bsdf file (read as Mitsuba 3's measured plugin reads
+    /// it, tabulated on MERL's nodes); or a folder, whose every .binary and
+    /// .bin table is fitted into the -o folder.
     pub input: PathBuf,
     /// Read the input as this format instead of detecting it.
     #[arg(long, value_enum)]

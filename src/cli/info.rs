@@ -116,7 +116,14 @@ pub fn run(args: InfoArgs) -> CliResult {
     type Cell<'a> = Box<dyn Fn(usize) -> Option<[f64; 3]> + 'a>;
     let (name, dims, cells, cell): (_, _, _, Cell) = match &table {
         npf_data_loaders::Table::Merl(t) => (
-            "MERL table",
+            if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("bsdf"))
+            {
+                "RGL .bsdf file, read as a MERL table of its BRDF"
+            } else {
+                "MERL table"
+            },
             "90 x 90 x 180 (theta_h, theta_d, phi_d)",
             MerlTable::CELLS,
             Box::new(|i| t.cell(i)),

@@ -30,6 +30,7 @@
 use crate::model::Model;
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
 use npf_data_loaders::rgl::{Field, TensorFile};
+use npf_data_loaders::rgl_warp::{Bilinear, Warp2D};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -122,122 +123,13 @@ fn theta2u(theta: f64) -> f64 {
     (theta / FRAC_PI_2).max(0.0).sqrt()
 }
 
-/// The piecewise-bilinear 2-D warp of Mitsuba's `Marginal2D<…, true>` /
-/// pbrt's `PiecewiseLinear2D` (format spec section 5), forward map only:
-/// what places the sample nodes.
-pub struct Warp2D {
-    w: usize,
-    h: usize,
-    /// Normalised density values, row-major (H x W).
-    f: Vec<f64>,
-    /// Conditional CDFs, row-major (H x W).
-    cond: Vec<f64>,
-    /// Marginal CDF (H).
-    marg: Vec<f64>,
-}
-
-/// Solves integral_0^t lerp(a, b, tau) d tau = target for t in [0, 1].
-#[inline]
-fn linear_segment(a: f64, b: f64, target: f64) -> f64 {
-    let t = if (a - b).abs() <= 1e-4 * (a + b) {
-        2.0 * target / (a + b)
-    } else {
-        (a - (a * a + 2.0 * target * (b - a)).max(0.0).sqrt()) / (a - b)
-    };
-    if t.is_finite() {
-        t.clamp(0.0, 1.0)
-    } else {
-        0.0
-    }
-}
-
-/// Index of the last entry of `cdf[..n-1]` that is <= x.
-fn interval(n: usize, x: f64, at: impl Fn(usize) -> f64) -> usize {
-    let (mut lo, mut hi) = (0usize, n - 1);
-    while hi - lo > 1 {
-        let mid = (lo + hi) / 2;
-        if at(mid) <= x {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    lo
-}
-
-impl Warp2D {
-    /// Builds the warp of a non-negative (H x W) table with H, W >= 2 and a
-    /// positive integral; `None` otherwise.
-    pub fn new(table: &[f64], h: usize, w: usize) -> Option<Self> {
-        if h < 2 || w < 2 || table.len() != h * w {
-            return None;
-        }
-        let mut cond = vec![0.0; h * w];
-        for j in 0..h {
-            for k in 1..w {
-                cond[j * w + k] = cond[j * w + k - 1]
-                    + (table[j * w + k - 1] + table[j * w + k]) / (2.0 * (w - 1) as f64);
-            }
-        }
-        let row = |j: usize| cond[j * w + w - 1];
-        let mut marg = vec![0.0; h];
-        for j in 1..h {
-            marg[j] = marg[j - 1] + (row(j - 1) + row(j)) / (2.0 * (h - 1) as f64);
-        }
-        let total = marg[h - 1];
-        if !(total > 0.0 && total.is_finite()) {
-            return None;
-        }
-        Some(Warp2D {
-            w,
-            h,
-            f: table.iter().map(|v| v / total).collect(),
-            cond: cond.iter().map(|v| v / total).collect(),
-            marg: marg.iter().map(|v| v / total).collect(),
-        })
-    }
-
-    /// Maps a point s of the unit square to u, with the density of u.
-    pub fn sample(&self, s: [f64; 2]) -> ([f64; 2], f64) {
-        let (w, h) = (self.w, self.h);
-        let row = |j: usize| self.cond[j * w + w - 1];
-        let sy = s[1].clamp(0.0, 1.0);
-        let j = interval(h, sy, |j| self.marg[j]);
-        let (r0, r1) = (row(j), row(j + 1));
-        let ty = linear_segment(r0, r1, (sy - self.marg[j]) * (h - 1) as f64);
-        let uy = (j as f64 + ty) / (h - 1) as f64;
-        let c = |k: usize| self.cond[j * w + k] * (1.0 - ty) + self.cond[(j + 1) * w + k] * ty;
-        let target = s[0].clamp(0.0, 1.0) * (r0 * (1.0 - ty) + r1 * ty);
-        let k = interval(w, target, c);
-        let fv = |k: usize| self.f[j * w + k] * (1.0 - ty) + self.f[(j + 1) * w + k] * ty;
-        let (c0, c1) = (fv(k), fv(k + 1));
-        let tx = linear_segment(c0, c1, (target - c(k)) * (w - 1) as f64);
-        let ux = (k as f64 + tx) / (w - 1) as f64;
-        ([ux, uy], c0 * (1.0 - tx) + c1 * tx)
-    }
-}
-
 /// A table on the unit square (H x W, nodes j / (H - 1), k / (W - 1)),
-/// bilinear, x clamped and y wrapped into [0, 1) as the readers do.
-struct Table2 {
-    h: usize,
-    w: usize,
-    v: Vec<f64>,
-}
+/// read as the renderers read it ([`Bilinear`]: x clamped, y wrapped).
+type Table2 = Bilinear;
 
-impl Table2 {
-    fn at(&self, x: f64, y: f64) -> f64 {
-        let (h, w) = (self.h, self.w);
-        let x = x.clamp(0.0, 1.0) * (w - 1) as f64;
-        let y = (y - y.floor()).clamp(0.0, 1.0) * (h - 1) as f64;
-        let (k, j) = (
-            (x.floor() as usize).min(w - 2),
-            (y.floor() as usize).min(h - 2),
-        );
-        let (tx, ty) = (x - k as f64, y - j as f64);
-        let row = |j: usize| self.v[j * w + k] * (1.0 - tx) + self.v[j * w + k + 1] * tx;
-        row(j) * (1.0 - ty) + row(j + 1) * ty
-    }
+/// The value of a one-slice table at (x, y).
+fn at(t: &Table2, x: f64, y: f64) -> f64 {
+    t.at(x, y, &[(0, 1.0)])
 }
 
 /// phi of a unit-square coordinate (phi = (2 u - 1) pi).
@@ -372,7 +264,7 @@ fn projected_area(ndf: &Table2, h: usize, w: usize, iso: bool) -> Table2 {
                     let m = spherical(t, phi);
                     let c = dot(m, wi);
                     if c > 0.0 {
-                        ring += c * ndf.at(u, phi2u(phi));
+                        ring += c * at(ndf, u, phi2u(phi));
                     }
                 }
                 s += ring / qphi as f64 * 2.0 * PI * t.sin() * PI * u / qu as f64;
@@ -487,7 +379,7 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
             let wi = spherical(ti, pi_);
             // Isotropic files give phi_m relative to phi_i, anisotropic ones absolute.
             let phi_offset = if iso { pi_ } else { 0.0 };
-            let sig = sigma.at(theta2u(ti), phi2u(pi_));
+            let sig = at(&sigma, theta2u(ti), phi2u(pi_));
             let mut vndf = vec![0.0; nv * nv];
             for j in 0..nv {
                 let phi = u2phi(j as f64 / (nv - 1) as f64) + phi_offset;
@@ -495,7 +387,7 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
                     let u = k as f64 / (nv - 1) as f64;
                     let tm = u2theta(u);
                     let m = spherical(tm, phi);
-                    vndf[j * nv + k] = dot(wi, m).max(0.0) * ndf.at(u, phi2u(phi)) / sig
+                    vndf[j * nv + k] = dot(wi, m).max(0.0) * at(&ndf, u, phi2u(phi)) / sig
                         * 2.0
                         * PI
                         * PI
@@ -507,15 +399,15 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
             let mut lum = vec![0.0; n * n];
             // A slice without mass (cannot happen for theta_i < 90 deg, since
             // the proxy is positive) keeps the identity warp.
-            let warp = Warp2D::new(&vndf, nv, nv).or_else(|| {
+            let warp = Warp2D::new(&vndf, nv, nv).ok().or_else(|| {
                 vndf.iter_mut().for_each(|v| *v = 1.0);
-                Warp2D::new(&vndf, nv, nv)
+                Warp2D::new(&vndf, nv, nv).ok()
             });
             let warp = warp.expect("a constant table has a warp");
             for j in 0..n {
                 for k in 0..n {
                     let s = [k as f64 / (n - 1) as f64, j as f64 / (n - 1) as f64];
-                    let (um, pv) = warp.sample(s);
+                    let (um, pv) = warp.sample(s, &[(0, 1.0)]);
                     let tm = u2theta(um[0]);
                     let phi_m = u2phi(um[1]) + phi_offset;
                     let m = spherical(tm, phi_m);
@@ -529,7 +421,7 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
                         continue;
                     }
                     let f = model.eval(wo, wi);
-                    let jac = ndf.at(um[0], phi2u(phi_m)) / (4.0 * sig);
+                    let jac = at(&ndf, um[0], phi2u(phi_m)) / (4.0 * sig);
                     let v = f.map(|x| x * wo[2] / jac);
                     let y: f64 = (0..3).map(|c| LUMINANCE[c] * f[c] * wo[2]).sum();
                     let dwds = 4.0 * wm * (2.0 * PI * PI * um[0] * tm.sin()).max(1e-6) / pv;
@@ -599,42 +491,6 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn warp_of_a_constant_table_is_the_identity() {
-        let w = Warp2D::new(&[1.0; 12], 3, 4).unwrap();
-        for s in [[0.0, 0.0], [0.3, 0.7], [1.0, 1.0], [0.5, 0.25]] {
-            let (u, p) = w.sample(s);
-            assert!(
-                (u[0] - s[0]).abs() < 1e-12 && (u[1] - s[1]).abs() < 1e-12,
-                "{u:?}"
-            );
-            assert!((p - 1.0).abs() < 1e-12);
-        }
-    }
-
-    #[test]
-    fn warp_pushes_uniform_points_to_the_density() {
-        // Density rising along x: the warped mean of x is its mean under
-        // the (normalised bilinear) density, 2/3 for f = x.
-        let (h, w) = (2, 9);
-        let t: Vec<f64> = (0..h * w)
-            .map(|i| (i % w) as f64 / (w - 1) as f64)
-            .collect();
-        let warp = Warp2D::new(&t, h, w).unwrap();
-        let n = 200;
-        let mut mean = 0.0;
-        for a in 0..n {
-            for b in 0..n {
-                let s = [(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64];
-                let (u, p) = warp.sample(s);
-                assert!((p - 2.0 * u[0]).abs() < 1e-9);
-                mean += u[0];
-            }
-        }
-        mean /= (n * n) as f64;
-        assert!((mean - 2.0 / 3.0).abs() < 1e-4, "{mean}");
-    }
 
     #[test]
     fn smits_white_is_flat_and_scales_linearly() {
