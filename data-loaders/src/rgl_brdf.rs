@@ -145,19 +145,19 @@ impl RglBrdf {
         };
         let ndf = two_d("ndf")?;
         let sigma = two_d("sigma")?;
-        let slices = |f: &Field, extra: usize| -> Result<(), LoadError> {
+        // A conditioned table's first two axes are the parameter nodes.
+        let slices = |f: &Field| -> Result<(), LoadError> {
             if f.shape[0] != p || f.shape[1] != t {
                 return Err(bad(format!(
                     "field {:?}: shape {:?} does not begin with (len(phi_i), len(theta_i)) = ({p}, {t})",
                     f.name, f.shape
                 )));
             }
-            let _ = extra;
             Ok(())
         };
         let vf = field(file, path, "vndf")?;
         let vndf_values = floats(vf, path, (4, 2, 2), true)?;
-        slices(vf, 0)?;
+        slices(vf)?;
         let vndf = Warp2D::new(&vndf_values, vf.shape[2], vf.shape[3]).map_err(|e| match e {
             WarpError::Shape => bad("field \"vndf\": slices of fewer than 2 x 2".into()),
             WarpError::Integral { slice } => bad(format!(
@@ -168,7 +168,7 @@ impl RglBrdf {
         })?;
         let lf = field(file, path, "luminance")?;
         floats(lf, path, (4, 2, 2), true)?;
-        slices(lf, 0)?;
+        slices(lf)?;
         let (wavelengths, df) = match file.get("wavelengths") {
             Some(wf) => {
                 let w = floats(wf, path, (1, 1, 1), true)?;
@@ -178,7 +178,7 @@ impl RglBrdf {
             None => (None, field(file, path, "rgb")?),
         };
         let data_values = floats(df, path, (5, 3, 2), false)?;
-        slices(df, 0)?;
+        slices(df)?;
         let channels = df.shape[2];
         let want_channels = wavelengths.as_ref().map_or(3, Vec::len);
         if channels != want_channels {
