@@ -34,8 +34,8 @@ pub const MAX_TABLE_VALUES: usize = 1 << 28;
 pub struct RglBrdf {
     /// The file's name, for messages.
     pub source: String,
-    phi_i: ParamAxis,
-    theta_i: ParamAxis,
+    /// The conditioning parameters' nodes: phi_i, theta_i.
+    params: [ParamAxis; 2],
     ndf: Bilinear,
     sigma: Bilinear,
     vndf: Warp2D,
@@ -213,8 +213,7 @@ impl RglBrdf {
         Ok(RglBrdf {
             source: path.display().to_string(),
             to_rgb,
-            phi_i: ParamAxis(phi),
-            theta_i: ParamAxis(theta),
+            params: [ParamAxis(phi), ParamAxis(theta)],
             ndf,
             sigma,
             vndf,
@@ -231,13 +230,13 @@ impl RglBrdf {
 
     /// Whether the file is isotropic (at most two `phi_i` nodes).
     pub fn is_isotropic(&self) -> bool {
-        self.phi_i.0.len() <= 2
+        self.params[0].0.len() <= 2
     }
 
     /// The file's last `theta_i` node (radians): how far from the normal
     /// it conditions on a measured direction.
     pub fn max_theta_i(&self) -> f64 {
-        self.theta_i.0[self.theta_i.0.len() - 1]
+        self.params[1].0[self.params[1].0.len() - 1]
     }
 
     /// Channels of the value: 3 for RGB files, one per wavelength for
@@ -278,10 +277,7 @@ impl RglBrdf {
         let mut u_m = [u_theta(theta(m)), u_phi(phi_m)];
         u_m[1] -= u_m[1].floor();
         let u_wi = [u_theta(theta_i), u_phi(phi_i)];
-        let b = blend(
-            &[self.phi_i.clone(), self.theta_i.clone()],
-            &[phi_i, theta_i],
-        );
+        let b = blend(&self.params, &[phi_i, theta_i]);
         let (s, _) = self.vndf.invert(u_m, &b);
         let scale = if self.jacobian {
             let d = self.ndf.at(u_m[0], u_m[1], &[(0, 1.0)]);
@@ -294,9 +290,13 @@ impl RglBrdf {
         } else {
             1.0
         };
+        // The data's slices are (phi_i, theta_i, channel): one blend buffer
+        // for every channel.
+        let mut bc = b.clone();
         for (c, o) in out.iter_mut().enumerate() {
-            let bc: Vec<(usize, f64)> =
-                b.iter().map(|&(k, w)| (k * self.channels + c, w)).collect();
+            for (slot, &(k, w)) in bc.iter_mut().zip(&b) {
+                *slot = (k * self.channels + c, w);
+            }
             *o = self.data.at(s[0], s[1], &bc) * scale;
         }
     }
@@ -328,7 +328,7 @@ impl RglBrdf {
                 Path::new(&self.source),
                 format!(
                     "an anisotropic .bsdf file ({} phi_i nodes) cannot be read as an isotropic table; only isotropic .bsdf files can be fitted so far",
-                    self.phi_i.0.len()
+                    self.params[0].0.len()
                 ),
             ));
         }
