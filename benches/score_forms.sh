@@ -17,11 +17,7 @@ cd "$(dirname "$0")/.."
 data=${1:?usage: benches/score_forms.sh DATA_DIR [LABEL=OPTIONS ...]}
 shift
 [ $# -gt 0 ] || set -- "default="
-npf=$PWD/target/release/npf
-score=${SCORE:-$PWD/../shared/tools/score.py}
-python=${PYTHON:-python3}
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+. benches/common/scorer.sh
 printf '%-24s %-12s %8s %9s %7s %7s  %s\n' table options psnr_db log_rmse wall_s peak_mb chosen
 for ref in "$data"/*.binary; do
     name=$(basename "$ref" .binary)

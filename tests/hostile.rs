@@ -603,6 +603,26 @@ fn eval_follows_the_angle_convention() {
         args.extend(bad);
         assert_fails(&npf(&args), "0 to 90 degrees");
     }
+    // --wavelengths is for spectral .bsdf files, and takes wavelengths.
+    let q = ["30", "0", "30", "180"];
+    for (extra, needle) in [
+        (&["--wavelengths", "500"][..], "a model is RGB"),
+        (
+            &["--wavelengths", "500,nan"][..],
+            "not a positive wavelength",
+        ),
+        (&["--wavelengths", "-400"][..], "not a positive wavelength"),
+    ] {
+        let mut args = vec!["eval", s(&m)];
+        args.extend(q);
+        args.extend(extra);
+        assert_fails(&npf(&args), needle);
+    }
+    let many = vec!["500"; 65].join(",");
+    let mut args = vec!["eval", s(&m)];
+    args.extend(q);
+    args.extend(["--wavelengths", &many]);
+    assert_fails(&npf(&args), "at most 64");
 }
 
 mod parsers {

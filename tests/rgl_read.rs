@@ -1,7 +1,7 @@
 //! Reading RGL `.bsdf` files (issue 45): a model written by npf's exporter
 //! and read back as a table gives the model's values; spectral files reach
-//! RGB by the documented route; anisotropic files are refused for fitting
-//! with a message; a truncated file is an error naming it. (The reader's
+//! RGB by the documented route; an anisotropic file reads as a UTIA table
+//! of its model; a truncated file is an error naming it. (The reader's
 //! agreement with Mitsuba 3's `measured` plugin is checked in
 //! python/tests/test_rgl_reader.py.)
 
@@ -10,7 +10,7 @@ use npf::export::rgl::to_tensor_file;
 use npf::export::RglOptions;
 use npf::loaders::geometry::spherical;
 use npf::loaders::rgl_brdf::RglBrdf;
-use npf::loaders::{MerlTable, Table};
+use npf::loaders::{MerlTable, Table, UtiaTable};
 use npf::model::Layout;
 use npf::synth::known_factor_model;
 
@@ -111,4 +111,98 @@ fn bad_files_are_errors_naming_them() {
     std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
     let e = Table::read(&path, None).unwrap_err().to_string();
     assert!(e.contains("t.bsdf"), "{e}");
+}
+
+#[test]
+fn eval_gives_a_spectral_file_s_values_at_wavelengths_and_refuses_an_rgb_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = known_factor_model(Layout::default(), &[0.2]);
+    let (spectral, rgb) = (dir.path().join("s.bsdf"), dir.path().join("c.bsdf"));
+    for (path, spectral) in [(&spectral, true), (&rgb, false)] {
+        let opts = RglOptions {
+            spectral,
+            ..small()
+        };
+        to_tensor_file(&model, &opts)
+            .unwrap()
+            .write(path, false)
+            .unwrap();
+    }
+    let brdf = RglBrdf::read(&spectral).unwrap();
+    let nodes = brdf.wavelengths().unwrap().to_vec();
+    let (ti, to) = (40.0f64, 20.0f64);
+    let list = nodes
+        .iter()
+        .map(|w| w.to_string())
+        .collect::<Vec<_>>()
+        .join(",");
+    let npf = |path: &std::path::Path, extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_npf"))
+            .args(["eval", path.to_str().unwrap(), "40", "0", "20", "180"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = npf(&spectral, &["--wavelengths", &list]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let row: Vec<f64> = text
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .skip(4)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    // At the file's own nodes, the values are its channels (the view is
+    // the conditioning direction).
+    let mut want = vec![0.0; brdf.channels()];
+    let (wi, wo) = (
+        spherical(ti.to_radians(), 0.0),
+        spherical(to.to_radians(), std::f64::consts::PI),
+    );
+    brdf.value(wo, wi, &mut want);
+    assert_eq!(row.len(), want.len());
+    for (a, b) in row.iter().zip(&want) {
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs().max(1e-9),
+            "{row:?} against {want:?}"
+        );
+    }
+    assert!(want.iter().all(|&v| v > 0.0));
+    let o = npf(&rgb, &["--wavelengths", "500"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("c.bsdf") && err.contains("needs a spectral .bsdf"),
+        "{err}"
+    );
+}
+
+#[test]
+fn an_anisotropic_export_reads_back_as_a_utia_table_of_its_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = npf::synth_aniso::known_model();
+    assert!(!model.layout.is_isotropic());
+    let path = dir.path().join("a.bsdf");
+    to_tensor_file(&model, &small())
+        .unwrap()
+        .write(&path, false)
+        .unwrap();
+    let Table::Utia(table) = Table::read(&path, None).unwrap() else {
+        panic!("an anisotropic .bsdf reads as a UTIA table")
+    };
+    let want = npf::reconstruct::to_utia(&model);
+    let mut errs: Vec<f64> = (0..UtiaTable::CELLS)
+        .filter_map(|i| {
+            let (a, b) = (table.cell(i)?, want.cell(i)?);
+            let (a, b) = (a.iter().sum::<f64>(), b.iter().sum::<f64>());
+            (b > 0.0).then(|| (a - b).abs() / b)
+        })
+        .collect();
+    assert!(errs.len() > UtiaTable::CELLS / 2, "{} cells", errs.len());
+    errs.sort_by(f64::total_cmp);
+    let median = errs[errs.len() / 2];
+    eprintln!("median relative error of the anisotropic read-back: {median:.4}");
+    assert!(median < 0.03, "{median}");
 }

@@ -8,7 +8,8 @@
 //! format explicitly); any other extension is decided by size alone; a file
 //! of neither size is refused with what it looks like (its size against both
 //! formats'). A `.bsdf` file (RGL's tensor format, no `--format`) is read
-//! as its BRDF tabulated on a MERL table's nodes ([`crate::rgl_brdf`]).
+//! as its BRDF tabulated on a MERL table's nodes, or on a UTIA table's if
+//! it is anisotropic ([`crate::rgl_brdf`]).
 
 use std::path::Path;
 
@@ -95,12 +96,16 @@ impl Table {
     /// Reads `path` as `hint` if given, else as the format
     /// [`Format::detect`] finds; every error names the file.
     pub fn read(path: &Path, hint: Option<Format>) -> Result<Table, LoadError> {
-        // An RGL `.bsdf` file: its BRDF tabulated as a MERL table.
+        // An RGL `.bsdf` file: its BRDF tabulated as a MERL table, or as a
+        // UTIA table if it is anisotropic.
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
         if hint.is_none() && ext.eq_ignore_ascii_case("bsdf") {
-            return Ok(Table::Merl(
-                crate::rgl_brdf::RglBrdf::read(path)?.to_merl()?,
-            ));
+            let brdf = crate::rgl_brdf::RglBrdf::read(path)?;
+            return Ok(if brdf.is_isotropic() {
+                Table::Merl(brdf.to_merl()?)
+            } else {
+                Table::Utia(brdf.to_utia())
+            });
         }
         let format = match hint {
             Some(f) => f,

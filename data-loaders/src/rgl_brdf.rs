@@ -20,10 +20,11 @@
 use std::path::Path;
 
 use crate::error::LoadError;
-use crate::geometry::{directions_from_half_diff, Vec3};
+use crate::geometry::{directions_from_half_diff, spherical, Vec3};
 use crate::merl::MerlTable;
 use crate::rgl::{Field, TensorFile};
 use crate::rgl_warp::{blend, Bilinear, ParamAxis, Warp2D, WarpError};
+use crate::utia::UtiaTable;
 
 /// Largest number of values any one table may hold (the database's
 /// largest tables hold a few million).
@@ -321,13 +322,14 @@ impl RglBrdf {
     /// missing: the file holds nothing measured there, and near the
     /// horizon its f cos(theta_o), divided by a vanishing cosine, would
     /// give values without bound (up to 1e13 measured on an export).
-    /// Only for isotropic files (a MERL table has no azimuth of its own).
+    /// Only for isotropic files (a MERL table has no azimuth of its own:
+    /// see [`Self::to_utia`] for anisotropic ones).
     pub fn to_merl(&self) -> Result<MerlTable, LoadError> {
         if !self.is_isotropic() {
             return Err(LoadError::invalid(
                 Path::new(&self.source),
                 format!(
-                    "an anisotropic .bsdf file ({} phi_i nodes) cannot be read as an isotropic table; only isotropic .bsdf files can be fitted so far",
+                    "an anisotropic .bsdf file ({} phi_i nodes) cannot be read as an isotropic MERL table; read it as a UTIA table",
                     self.params[0].0.len()
                 ),
             ));
@@ -335,9 +337,54 @@ impl RglBrdf {
         let lowest_cos = self.max_theta_i().cos();
         Ok(MerlTable::from_fn(|th, td, pd| {
             let (wi, wo) = directions_from_half_diff(th, 0.0, td, pd);
-            (wi[2] >= lowest_cos && wo[2] >= lowest_cos && wi[2] > 0.0 && wo[2] > 0.0)
-                .then(|| self.rgb(wo, wi))
+            self.within(wi, wo, lowest_cos).then(|| self.rgb(wo, wi))
         }))
+    }
+
+    /// The file's BRDF as a UTIA table (its 6 x 48 x 6 x 48 nodes, azimuths
+    /// absolute, as the file's `phi_i`): [`Self::rgb`] with the view as the
+    /// conditioning direction; cells beyond the last `theta_i` node are
+    /// missing, as in [`Self::to_merl`]. For files of either kind (an
+    /// isotropic file's value depends on the azimuth difference only).
+    pub fn to_utia(&self) -> UtiaTable {
+        let lowest_cos = self.max_theta_i().cos();
+        UtiaTable::from_fn(|ti, pi, tv, pv| {
+            let (wi, wo) = (spherical(ti, pi), spherical(tv, pv));
+            self.within(wi, wo, lowest_cos).then(|| self.rgb(wo, wi))
+        })
+    }
+
+    /// Whether both directions are above the horizon and within the file's
+    /// last `theta_i` node (`lowest_cos` its cosine).
+    fn within(&self, wi: Vec3, wo: Vec3, lowest_cos: f64) -> bool {
+        wi[2] >= lowest_cos && wo[2] >= lowest_cos && wi[2] > 0.0 && wo[2] > 0.0
+    }
+
+    /// The BRDF f of a spectral file at (wi, wo) and each of `lambdas`
+    /// (nm), as Mitsuba 3's spectral variants evaluate it: linear between
+    /// the file's wavelength nodes, the end nodes' values outside them.
+    /// `None` for an RGB file. (Blending the slices before the jacobian, as
+    /// Mitsuba does, or the values after it is the same: both are linear.)
+    pub fn spectral_value(&self, wi: Vec3, wo: Vec3, lambdas: &[f64]) -> Option<Vec<f64>> {
+        let nodes = self.wavelengths.as_deref()?;
+        let mut v = vec![0.0; self.channels];
+        self.value(wi, wo, &mut v);
+        Some(
+            lambdas
+                .iter()
+                .map(|&l| {
+                    let k = nodes.partition_point(|&n| n <= l);
+                    if k == 0 {
+                        v[0]
+                    } else if k == nodes.len() {
+                        v[k - 1]
+                    } else {
+                        let t = (l - nodes[k - 1]) / (nodes[k] - nodes[k - 1]);
+                        v[k - 1] * (1.0 - t) + v[k] * t
+                    }
+                })
+                .collect(),
+        )
     }
 
     /// The BRDF f in linear sRGB at (wi, wo) ([`Self::value`], spectral
@@ -367,7 +414,6 @@ impl RglBrdf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::spherical;
 
     /// A valid isotropic RGB file: identity warp (constant vndf), ndf 1 and
     /// sigma 1/4 (jacobian 1), rgb[c] = (c + 1) / 10 everywhere, so that
@@ -421,6 +467,28 @@ mod tests {
         }
         b.value(spherical(0.3, 0.0), [0.0, 0.6, -0.8], &mut v);
         assert_eq!(v, [0.0; 3]);
+    }
+
+    #[test]
+    fn spectral_values_are_linear_between_wavelength_nodes_and_clamped_outside() {
+        // The constant file's three channels as spectra at 400, 500, 600 nm.
+        let mut f = file(3, 4);
+        for g in f.fields.iter_mut().filter(|g| g.name == "rgb") {
+            g.name = "spectra".into();
+        }
+        f.fields
+            .push(Field::f32("wavelengths", &[3], vec![400.0, 500.0, 600.0]));
+        let b = RglBrdf::from_file(&f, Path::new("x.bsdf")).unwrap();
+        let (wi, wo) = (spherical(0.2, 0.0), spherical(0.6, 2.0));
+        let v = b
+            .spectral_value(wi, wo, &[300.0, 400.0, 450.0, 575.0, 600.0, 900.0])
+            .unwrap();
+        let want = [0.1, 0.1, 0.15, 0.275, 0.3, 0.3].map(|x| x / wo[2]);
+        for (a, w) in v.iter().zip(want) {
+            assert!((a - w).abs() < 1e-6 * w, "{v:?} against {want:?}");
+        }
+        let rgb = RglBrdf::from_file(&file(3, 4), Path::new("x.bsdf")).unwrap();
+        assert!(rgb.spectral_value(wi, wo, &[500.0]).is_none());
     }
 
     #[test]

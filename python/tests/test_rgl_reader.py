@@ -99,20 +99,22 @@ def analytic_file(path, n=64, thetas=24):
     })
 
 
-def random_file(path, rng, phis, thetas, n=8):
+def random_file(path, rng, phis, thetas, n=8, wavelengths=None):
     """Random positive tables of unequal sizes: the vndf warp is far from
-    the identity, and queries fall between parameter nodes."""
+    the identity, and queries fall between parameter nodes. With
+    `wavelengths`, `spectra` (one channel per wavelength) instead of `rgb`."""
     p = len(phis)
     pos = lambda *shape: (0.05 + rng.random(shape)).astype(np.float32)
     vndf = pos(p, len(thetas), 9, 11)
-    lum, rgb = pos(p, len(thetas), n, n), pos(p, len(thetas), 3, n, n)
+    channels = 3 if wavelengths is None else len(wavelengths)
+    lum, rgb = pos(p, len(thetas), n, n), pos(p, len(thetas), channels, n, n)
     ndf, sigma = pos(5, 7), pos(4, 6) + 0.5
     if p > 1:  # anisotropic: the end slices (phi_i = -pi, pi) are equal
         for a in (vndf, lum, rgb):
             a[-1] = a[0]
     else:  # isotropic: ndf and sigma constant along phi (RGL_FORMAT.md section 3)
         ndf[:], sigma[:] = ndf[0], sigma[0]
-    write_tensor(path, {
+    fields = {
         "description": np.frombuffer(b"random tables (test_rgl_reader.py)", np.uint8),
         "phi_i": np.asarray(phis, np.float32),
         "theta_i": np.asarray(thetas, np.float32),
@@ -120,9 +122,14 @@ def random_file(path, rng, phis, thetas, n=8):
         "sigma": sigma,
         "vndf": vndf,
         "luminance": lum,
-        "rgb": rgb,
-        "jacobian": np.ones(1, np.uint8),
-    })
+    }
+    if wavelengths is None:
+        fields["rgb"] = rgb
+    else:
+        fields["wavelengths"] = np.asarray(wavelengths, np.float32)
+        fields["spectra"] = rgb
+    fields["jacobian"] = np.ones(1, np.uint8)
+    write_tensor(path, fields)
 
 
 def uniform_dirs(rng, n):
@@ -130,12 +137,15 @@ def uniform_dirs(rng, n):
     return th, rng.random(n) * 2 * np.pi - np.pi
 
 
-def npf_eval(path, ti, pi_, to, po):
+def npf_eval(path, ti, pi_, to, po, wavelengths=None):
     """npf's value f at (theta_i, phi_i) = the light, (theta_o, phi_o) =
-    the view (RGL's conditioning direction)."""
+    the view (RGL's conditioning direction): RGB, or a spectral file's
+    values at `wavelengths`."""
     args = []
     for q in zip(ti, pi_, to, po):
         args += [f"{np.degrees(x):.9f}" for x in q]
+    if wavelengths is not None:
+        args += ["--wavelengths", ",".join(map(str, wavelengths))]
     lines = npf("eval", path, *args).stdout.splitlines()[1:]
     return np.array([[float(v) for v in l.split(",")[4:]] for l in lines])
 
@@ -153,6 +163,25 @@ def mitsuba_eval(path, wi, wo):
         si.sh_frame = mi.Frame3f(si.n)
         v = bsdf.eval(ctx, si, mi.Vector3f(*wo[k]))
         out[k] = [v[0], v[1], v[2]]
+    return out / wo[:, 2:3]
+
+
+def mitsuba_eval_spectral(path, wi, wo, wavelengths):
+    """Mitsuba `scalar_spectral`'s value over cos(theta_o) at each of
+    `wavelengths` (four per call, the variant's wavelength samples)."""
+    mi.set_variant("scalar_spectral")
+    bsdf = mi.load_dict({"type": "measured", "filename": str(path)})
+    ctx = mi.BSDFContext()
+    out = np.empty((len(wi), len(wavelengths)))
+    for k in range(len(wi)):
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*wi[k])
+        si.n = mi.Normal3f(0, 0, 1)
+        si.sh_frame = mi.Frame3f(si.n)
+        for j in range(0, len(wavelengths), 4):
+            si.wavelengths = wavelengths[j:j + 4]
+            v = bsdf.eval(ctx, si, mi.Vector3f(*wo[k]))
+            out[k, j:j + 4] = [v[0], v[1], v[2], v[3]]
     return out / wo[:, 2:3]
 
 
@@ -202,3 +231,43 @@ def test_the_analytic_file_holds_its_brdf(tmp_path):
     rel = np.abs(got - want).sum(1) / want.sum(1)
     print(f"median relative error against the analytic BRDF: {np.median(rel):.4%}")
     assert np.median(rel) < 0.02
+
+
+# The spectral files' wavelengths, uneven; the queries fall on nodes,
+# between them and beyond both ends (where Mitsuba holds the end values).
+SPECTRAL_NODES = [380.0, 420.0, 455.0, 530.0, 600.0, 690.0, 730.0]
+QUERY_WAVELENGTHS = [360.0, 380.0, 401.5, 455.0, 500.0, 612.25, 729.0, 800.0]
+
+
+@pytest.fixture(scope="module", params=["random-spectral-isotropic", "random-spectral-anisotropic", "npf-export-spectral"])
+def spectral_file(request, tmp_path_factory):
+    d = tmp_path_factory.mktemp(request.param)
+    path = d / "m.bsdf"
+    rng = np.random.default_rng(17)
+    if request.param == "random-spectral-isotropic":
+        random_file(path, rng, [0.0], np.radians([0, 25, 50, 86]), wavelengths=SPECTRAL_NODES)
+    elif request.param == "random-spectral-anisotropic":
+        random_file(path, rng, np.linspace(-np.pi, np.pi, 4), np.radians([0, 40, 80]), wavelengths=SPECTRAL_NODES)
+    else:
+        from test_mitsuba_bsdf import two_lobe_model
+
+        model = d / "two-lobe.json"
+        two_lobe_model(model)
+        npf("export", model, "-o", path, "--spectral", "--theta-i", 24, "--samples", 32)
+    return path
+
+
+def test_spectral_reader_agrees_with_mitsuba_scalar_spectral(spectral_file):
+    """Issue 45: `npf eval --wavelengths` against Mitsuba 3 `scalar_spectral`
+    at 10,000 random pairs and eight wavelengths each."""
+    rng = np.random.default_rng(23)
+    ti, pi_ = uniform_dirs(rng, PAIRS)
+    to, po = uniform_dirs(rng, PAIRS)
+    got = npf_eval(spectral_file, ti, pi_, to, po, QUERY_WAVELENGTHS)
+    ref = mitsuba_eval_spectral(spectral_file, sph(to, po), sph(ti, pi_), QUERY_WAVELENGTHS)
+    err = np.abs(got - ref)
+    bad = err > np.maximum(0.01 * np.abs(ref), 1e-4)
+    print(f"{spectral_file.parent.name}: max relative error {np.max(err / np.maximum(np.abs(ref), 1e-4)):.2e}, "
+          f"{bad.any(axis=1).sum()} of {PAIRS} pairs outside the bound")
+    assert np.all(ref >= 0) and np.any(ref > 0)
+    assert not bad.any(), f"first outside: pair {np.argwhere(bad)[0]}: npf {got[bad][:3]}, Mitsuba {ref[bad][:3]}"

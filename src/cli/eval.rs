@@ -20,7 +20,19 @@ pub struct EvalArgs {
     /// theta 0 to 90 (the value at 90, the horizon, is 0).
     #[arg(required = true, num_args = 4.., allow_negative_numbers = true)]
     pub angles: Vec<f64>,
+    /// A spectral .bsdf file: the values at these wavelengths (nm,
+    /// comma-separated, at most 64) instead of RGB; linear between the
+    /// file's wavelength nodes and held beyond its ends, as Mitsuba 3's
+    /// spectral variants read it.
+    #[arg(long, value_delimiter = ',', value_name = "NM,...")]
+    pub wavelengths: Vec<f64>,
 }
+
+/// Values of a model or file at (wo, wi), one per output column.
+type Evaluator = Box<dyn Fn(Vec3, Vec3) -> Vec<f64>>;
+
+/// Most wavelengths `--wavelengths` takes.
+const MAX_WAVELENGTHS: usize = 64;
 
 /// Run `npf eval`.
 pub fn run(args: EvalArgs) -> CliResult {
@@ -48,28 +60,68 @@ pub fn run(args: EvalArgs) -> CliResult {
         .model
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("bsdf"));
-    let eval: Box<dyn Fn(Vec3, Vec3) -> [f64; 3]> = if is_bsdf {
+    let lambdas = &args.wavelengths;
+    if lambdas.len() > MAX_WAVELENGTHS {
+        return Err(CliError::Message(format!(
+            "--wavelengths: {} values, at most {MAX_WAVELENGTHS}",
+            lambdas.len()
+        )));
+    }
+    if let Some(l) = lambdas.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+        return Err(CliError::Message(format!(
+            "--wavelengths: {l} is not a positive wavelength in nm"
+        )));
+    }
+    let (columns, eval): (Vec<String>, Evaluator) = if is_bsdf {
         let b = RglBrdf::read(&args.model)?;
-        Box::new(move |wo, wi| b.eval(wo, wi))
+        if lambdas.is_empty() {
+            (
+                names(["r", "g", "b"]),
+                Box::new(move |wo, wi| b.eval(wo, wi).to_vec()),
+            )
+        } else if b.wavelengths().is_none() {
+            return Err(CliError::Message(format!(
+                "{}: --wavelengths needs a spectral .bsdf file (this one has `rgb`, no `spectra`)",
+                args.model.display()
+            )));
+        } else {
+            let l = lambdas.clone();
+            (
+                lambdas.iter().map(|l| format!("{l}nm")).collect(),
+                // The view (wo) is the file's conditioning direction.
+                Box::new(move |wo, wi| b.spectral_value(wo, wi, &l).unwrap_or_default()),
+            )
+        }
     } else {
+        if !lambdas.is_empty() {
+            return Err(CliError::Message(format!(
+                "{}: --wavelengths applies to spectral .bsdf files; a model is RGB",
+                args.model.display()
+            )));
+        }
         let model = modelfile::read(&args.model)?.model;
-        Box::new(move |wo, wi| model.eval(wo, wi))
+        (
+            names(["r", "g", "b"]),
+            Box::new(move |wo, wi| model.eval(wo, wi).to_vec()),
+        )
     };
-    println!("theta_i,phi_i,theta_o,phi_o,r,g,b");
+    println!("theta_i,phi_i,theta_o,phi_o,{}", columns.join(","));
     for q in args.angles.chunks(4) {
         let wi = spherical(q[0].to_radians(), q[1].to_radians());
         let wo = spherical(q[2].to_radians(), q[3].to_radians());
         // The convention: zero at the horizon. cos(90 deg) rounds to 6e-17,
         // not 0, so the model alone would return a (huge) non-zero value.
         let v = if q[0] >= 90.0 || q[2] >= 90.0 {
-            [0.0; 3]
+            vec![0.0; columns.len()]
         } else {
             eval(wo, wi)
         };
-        println!(
-            "{},{},{},{},{:.9e},{:.9e},{:.9e}",
-            q[0], q[1], q[2], q[3], v[0], v[1], v[2]
-        );
+        let values: Vec<String> = v.iter().map(|x| format!("{x:.9e}")).collect();
+        println!("{},{},{},{},{}", q[0], q[1], q[2], q[3], values.join(","));
     }
     Ok(())
+}
+
+fn names<const N: usize>(n: [&str; N]) -> Vec<String> {
+    n.iter().map(|s| s.to_string()).collect()
 }

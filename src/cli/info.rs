@@ -113,13 +113,14 @@ pub fn run(args: InfoArgs) -> CliResult {
         return Ok(());
     }
     let table = npf_data_loaders::Table::read(path, args.format.map(Into::into))?;
+    let bsdf = args.format.is_none()
+        && path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("bsdf"));
     type Cell<'a> = Box<dyn Fn(usize) -> Option<[f64; 3]> + 'a>;
     let (name, dims, cells, cell): (_, _, _, Cell) = match &table {
         npf_data_loaders::Table::Merl(t) => (
-            if path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("bsdf"))
-            {
+            if bsdf {
                 "RGL .bsdf file, read as a MERL table of its BRDF"
             } else {
                 "MERL table"
@@ -129,7 +130,11 @@ pub fn run(args: InfoArgs) -> CliResult {
             Box::new(|i| t.cell(i)),
         ),
         npf_data_loaders::Table::Utia(t) => (
-            "UTIA table",
+            if bsdf {
+                "anisotropic RGL .bsdf file, read as a UTIA table of its BRDF"
+            } else {
+                "UTIA table"
+            },
             "6 x 48 x 6 x 48 (theta_i, phi_i, theta_v, phi_v; 15 / 7.5 deg)",
             UtiaTable::CELLS,
             Box::new(|i| t.cell(i)),
