@@ -206,3 +206,68 @@ fn an_anisotropic_export_reads_back_as_a_utia_table_of_its_model() {
     eprintln!("median relative error of the anisotropic read-back: {median:.4}");
     assert!(median < 0.03, "{median}");
 }
+
+/// Median relative error (RGB sum) of a file against its model at pairs
+/// within about `spread` radians of the mirror direction.
+fn near_mirror_error(model: &npf::model::Model, brdf: &RglBrdf, spread: f64) -> f64 {
+    let mut errs = Vec::new();
+    for k in 0..400 {
+        let (a, b) = ((k as f64 * 0.618034) % 1.0, (k as f64 * 0.754878) % 1.0);
+        let ti = 0.1 + 1.1 * (k as f64 / 400.0);
+        let wo = spherical(ti, 0.0);
+        let wi = spherical(
+            ti + spread * (2.0 * a - 1.0),
+            std::f64::consts::PI + spread * (2.0 * b - 1.0) / ti.sin(),
+        );
+        if wi[2] <= 0.0 {
+            continue;
+        }
+        let (m, f) = (model.eval(wo, wi), brdf.eval(wo, wi));
+        let (m, f) = (m.iter().sum::<f64>(), f.iter().sum::<f64>());
+        errs.push((f - m).abs() / m);
+    }
+    errs.sort_by(f64::total_cmp);
+    errs[errs.len() / 2]
+}
+
+#[test]
+fn the_export_writes_the_candidate_proxy_whose_renders_are_closest() {
+    use npf::export::rgl::{choose_proxy, to_tensor_file_with, Proxy};
+    let opts = RglOptions::default();
+    for alphas in [&[0.01, 0.2][..], &[0.02][..]] {
+        let model = known_factor_model(Layout::default(), alphas);
+        let (chosen, scores) = choose_proxy(&model, &opts).unwrap();
+        let candidates = Proxy::candidates(opts.broad);
+        assert_eq!(scores.len(), candidates.len());
+        let best = scores
+            .iter()
+            .max_by(|a, b| a.display_db.total_cmp(&b.display_db))
+            .unwrap();
+        // The written file is the best-rendering candidate's, byte for byte.
+        assert_eq!(
+            chosen,
+            to_tensor_file_with(&model, &opts, &best.proxy).unwrap()
+        );
+        // Every candidate is a faithful file: the choice is among good
+        // tabulations. (Near the mirror direction alone the plain lobes
+        // are closer on both models; the judge weighs every pixel, and
+        // for alpha 0.02 keeps the widened ones.)
+        let errs: Vec<f64> = candidates
+            .iter()
+            .map(|p| {
+                let f = to_tensor_file_with(&model, &opts, p).unwrap();
+                let b = RglBrdf::from_file(&f, std::path::Path::new("t.bsdf")).unwrap();
+                near_mirror_error(&model, &b, 0.02)
+            })
+            .collect();
+        let chosen_err = {
+            let b = RglBrdf::from_file(&chosen, std::path::Path::new("t.bsdf")).unwrap();
+            near_mirror_error(&model, &b, 0.02)
+        };
+        eprintln!(
+            "{alphas:?}: near-mirror median errors {errs:?}, chosen {chosen_err:.5}; {scores:?}"
+        );
+        assert!(errs.iter().all(|&e| e < 0.01), "{errs:?}");
+        assert!(errs.contains(&chosen_err), "{chosen_err} against {errs:?}");
+    }
+}

@@ -6,9 +6,15 @@
 //!   normalised to unit projected area and weighted by the lobe's share of
 //!   the albedo at normal incidence (npf's albedo quadrature), plus a constant 1/pi part weighted by the diffuse
 //!   share, at least [`RglOptions::broad`] (default [`BROAD_FLOOR`]), so
-//!   the broad part of f keeps sample nodes; each lobe also enters widened
-//!   ([`LOBE_SPREAD`]), so its flanks keep nodes. `ndf` and `sigma` tabulate it, so the renderer's own importance
-//!   sampling (`vndf`) follows the fit's lobes.
+//!   the broad part of f keeps sample nodes; each lobe enters widened
+//!   ([`LOBE_SPREAD`]), so its flanks keep nodes, or as it is
+//!   ([`LOBE_PLAIN`]), so a sharp peak is tabulated smoothly. `ndf` and
+//!   `sigma` tabulate it, so the renderer's own importance sampling
+//!   (`vndf`) follows the fit's lobes.
+//! - Which proxy: the writer builds the file for each of
+//!   [`Proxy::candidates`], reads each back as a renderer does and keeps
+//!   the one whose renders (npf's render judge, five scenes) are closest
+//!   to the model's ([`choose_proxy`]); the `description` field names it.
 //! - `rgb` (or `spectra`) holds f cos theta_o from [`Model::eval`] at every
 //!   node of the warped sample grid, divided by the jacobian
 //!   D~(m) / (4 sigma~(wi)) of the stored tables' own interpolants, so the
@@ -30,6 +36,7 @@
 use crate::model::Model;
 use npf_data_loaders::geometry::{spherical, Angles, Vec3};
 use npf_data_loaders::rgl::{Field, TensorFile};
+use npf_data_loaders::rgl_brdf::RglBrdf;
 use npf_data_loaders::rgl_warp::{Bilinear, Warp2D};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -46,6 +53,44 @@ pub const MAX_RES: usize = 512;
 /// How each lobe's share of the proxy NDF is spread: (widening factor
 /// rho, fraction) pairs; the lobe D^m(theta) and D^m(theta / rho).
 pub const LOBE_SPREAD: [(f64, f64); 3] = [(1.0, 0.6), (3.0, 0.25), (9.0, 0.15)];
+/// The lobes as they are: the proxy follows a sharp peak's own shape, so
+/// f cos / D~ stays smooth across it (the widened flanks of
+/// [`LOBE_SPREAD`] make it vary there, which the sample grid's bilinear
+/// interpolation misses: up to 40 % on violet-acrylic's peak).
+pub const LOBE_PLAIN: [(f64, f64); 1] = [(1.0, 1.0)];
+
+/// A proxy NDF's shape: how each lobe is spread and the least share of its
+/// constant part.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Proxy {
+    /// (widening factor, fraction) pairs ([`LOBE_SPREAD`], [`LOBE_PLAIN`]).
+    pub spread: Vec<(f64, f64)>,
+    /// Least share of the constant part ([`RglOptions::broad`]).
+    pub broad: f64,
+}
+
+impl Proxy {
+    /// The proxies [`to_tensor_file`] chooses among for a least constant
+    /// share `broad`: widened lobes at `broad`, plain lobes at `broad` and
+    /// at `broad` / 2.5 (more of the grid on the peak). No one of them
+    /// tabulates every material best (docs/export.md).
+    pub fn candidates(broad: f64) -> Vec<Proxy> {
+        vec![
+            Proxy {
+                spread: LOBE_SPREAD.to_vec(),
+                broad,
+            },
+            Proxy {
+                spread: LOBE_PLAIN.to_vec(),
+                broad,
+            },
+            Proxy {
+                spread: LOBE_PLAIN.to_vec(),
+                broad: broad / 2.5,
+            },
+        ]
+    }
+}
 /// Azimuth rows of the `ndf` and `sigma` tables of anisotropic models.
 pub const ANISO_PHI_ROWS: usize = 49;
 /// Rec. 709 luminance weights.
@@ -173,7 +218,7 @@ fn component_weights(model: &Model, broad: f64) -> (f64, Vec<f64>) {
 /// The proxy NDF of a model on an (h x w) table: rows phi_m =
 /// u2phi(j / (h - 1)), columns u_theta = k / (w - 1); unit projected area
 /// (integral of D cos theta_m = 1). One row's worth of work for an isotropic model.
-fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
+fn proxy_ndf(model: &Model, h: usize, w: usize, proxy: &Proxy) -> Table2 {
     let iso = model.layout.is_isotropic();
     let d_of = |m: usize, theta: f64, phi: f64| {
         model
@@ -199,7 +244,7 @@ fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
         }
         s
     };
-    let (broad, shares) = component_weights(model, broad);
+    let (broad, shares) = component_weights(model, proxy.broad);
     // Each lobe enters as itself and widened (D^m(theta / rho)), so the
     // flanks of a sharp lobe, where f falls by orders of magnitude, keep
     // sample nodes too.
@@ -208,7 +253,7 @@ fn proxy_ndf(model: &Model, h: usize, w: usize, broad: f64) -> Table2 {
         if share <= 0.0 || share.is_nan() {
             continue;
         }
-        for (rho, frac) in LOBE_SPREAD {
+        for &(rho, frac) in &proxy.spread {
             let a = area(m, rho);
             if a > 0.0 && a.is_finite() {
                 parts.push((m, rho, share * frac / a));
@@ -344,6 +389,71 @@ pub fn rgb_to_spectrum(rgb: [f64; 3]) -> [f64; 10] {
 /// The tensor file of a model: isotropic models with phi_i = [0],
 /// anisotropic ones with `phi_i` nodes over [-pi, pi].
 pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, ExportError> {
+    Ok(choose_proxy(model, opts)?.0)
+}
+
+/// What [`choose_proxy`] measured of one candidate proxy.
+#[derive(Clone, Debug)]
+pub struct ProxyScore {
+    /// The proxy.
+    pub proxy: Proxy,
+    /// The render judge's linear PSNR (dB, mean over its scenes) of the
+    /// file read back ([`RglBrdf`]) against the model.
+    pub linear_db: f64,
+    /// Its display (tone-mapped) PSNR, the same way.
+    pub display_db: f64,
+}
+
+/// The file of each of [`Proxy::candidates`] (for `opts.broad`), each read
+/// back as a renderer reads it and rendered by the render judge
+/// ([`crate::judge`]) against the model itself; the file whose renders
+/// are closest (the judge's mean display PSNR, as `--model auto` ranks
+/// fits; on five materials it ranked the candidates' read-back tables as
+/// score.py does, where the linear PSNR missed one) and every
+/// candidate's scores.
+pub fn choose_proxy(
+    model: &Model,
+    opts: &RglOptions,
+) -> Result<(TensorFile, Vec<ProxyScore>), ExportError> {
+    opts.validate()?;
+    model
+        .validate()
+        .map_err(|e| ExportError::Model(e.to_string()))?;
+    let reference = crate::bsdf::EvaluatedModel::new(model.clone())
+        .map_err(|e| ExportError::Model(e.to_string()))?;
+    let judge = crate::judge::Judge::new(&reference, crate::judge::judge_options());
+    let mut best: Option<(TensorFile, f64)> = None;
+    let mut scores = Vec::new();
+    for proxy in Proxy::candidates(opts.broad) {
+        let file = to_tensor_file_with(model, opts, &proxy)?;
+        let read = RglBrdf::from_file(&file, std::path::Path::new("(export)"))
+            .map_err(|e| ExportError::Model(format!("the written file does not read back: {e}")))?;
+        let s = judge.score(&read);
+        // NaN (no lit pixel) ranks last.
+        let rank = if s.mean_db.is_nan() {
+            f64::NEG_INFINITY
+        } else {
+            s.mean_db
+        };
+        if best.as_ref().map_or(true, |(_, b)| rank > *b) {
+            best = Some((file, rank));
+        }
+        scores.push(ProxyScore {
+            proxy,
+            linear_db: s.linear_mean_db,
+            display_db: s.mean_db,
+        });
+    }
+    let (file, _) = best.expect("at least one candidate");
+    Ok((file, scores))
+}
+
+/// The `.bsdf` of `model` with the proxy NDF `proxy`.
+pub fn to_tensor_file_with(
+    model: &Model,
+    opts: &RglOptions,
+    proxy: &Proxy,
+) -> Result<TensorFile, ExportError> {
     opts.validate()?;
     model
         .validate()
@@ -352,7 +462,7 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
     let (t_n, n, nv, nd) = (opts.theta_i, opts.samples, opts.vndf, opts.ndf);
     // The azimuth rows of ndf/sigma: constant for an isotropic model.
     let hd = if iso { 2 } else { ANISO_PHI_ROWS };
-    let ndf = proxy_ndf(model, hd, nd, opts.broad);
+    let ndf = proxy_ndf(model, hd, nd, proxy);
     let sigma = projected_area(&ndf, hd, nd, iso);
     let u_max = theta2u(MAX_THETA_I_DEG.to_radians());
     let theta_i: Vec<f64> = (0..t_n)
@@ -450,10 +560,16 @@ pub fn to_tensor_file(model: &Model, opts: &RglOptions) -> Result<TensorFile, Ex
         slices.iter().flat_map(|s| f32s(pick(s))).collect()
     };
     let description = format!(
-        "npf export: non-parametric factor model, {} lobe(s), {}; proxy NDF = the fit's D; \
-         values from Model::eval{}",
+        "npf export: non-parametric factor model, {} lobe(s), {}; proxy NDF = the fit's D \
+         (lobes {}, constant share >= {}); values from Model::eval{}",
         model.lobes.len(),
         if iso { "isotropic" } else { "anisotropic" },
+        if proxy.spread.len() > 1 {
+            "widened"
+        } else {
+            "plain"
+        },
+        proxy.broad,
         if opts.spectral {
             "; spectra by Smits (1999) RGB upsampling"
         } else {
