@@ -43,14 +43,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 // cos-weighted absolute error, relative to the cos-weighted value
                 let w = wi[2] * wo[2];
                 let ti = wo[2].acos().to_degrees();
-                let k = ((ti / 10.0) as usize).min(9);
-                by_ti[k].0 += ((rs - ms) * w).powi(2);
-                by_ti[k].1 += (ms * w).powi(2);
-                by_ti[k].2 += 1;
-                let kh = ((th.to_degrees() / 10.0) as usize).min(9);
-                by_th[kh].0 += ((rs - ms) * w).powi(2);
-                by_th[kh].1 += (ms * w).powi(2);
-                by_th[kh].2 += 1;
+                for (bins, deg) in [(&mut by_ti, ti), (&mut by_th, th.to_degrees())] {
+                    let b = &mut bins[((deg / 10.0) as usize).min(9)];
+                    b.0 += ((rs - ms) * w).powi(2);
+                    b.1 += (ms * w).powi(2);
+                    b.2 += 1;
+                }
                 if ms > 0.0 {
                     rel_all.push((rs - ms).abs() / ms);
                 }

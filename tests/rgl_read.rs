@@ -22,6 +22,14 @@ fn small() -> RglOptions {
     }
 }
 
+/// Writes `model` as a `.bsdf` at `path`.
+fn export(model: &npf::model::Model, opts: &RglOptions, path: &std::path::Path) {
+    to_tensor_file(model, opts)
+        .unwrap()
+        .write(path, false)
+        .unwrap();
+}
+
 /// Median relative error (summed over RGB) of `got` against the model over
 /// MERL cells with both directions within 80 degrees.
 fn median_error(model: &npf::model::Model, got: impl Fn(usize) -> Option<[f64; 3]>) -> f64 {
@@ -49,10 +57,7 @@ fn an_exported_model_reads_back_as_its_table() {
     let dir = tempfile::tempdir().unwrap();
     let model = known_factor_model(Layout::default(), &[0.1, 0.3]);
     let path = dir.path().join("m.bsdf");
-    to_tensor_file(&model, &small())
-        .unwrap()
-        .write(&path, false)
-        .unwrap();
+    export(&model, &small(), &path);
     let Table::Merl(table) = Table::read(&path, None).unwrap() else {
         panic!("an isotropic .bsdf reads as a MERL table")
     };
@@ -79,10 +84,7 @@ fn a_spectral_export_reads_back_near_its_rgb() {
         spectral: true,
         ..small()
     };
-    to_tensor_file(&model, &opts)
-        .unwrap()
-        .write(&path, false)
-        .unwrap();
+    export(&model, &opts, &path);
     let brdf = RglBrdf::read(&path).unwrap();
     assert_eq!(brdf.channels(), brdf.wavelengths().unwrap().len());
     let err = median_error(&model, |i| {
@@ -103,10 +105,7 @@ fn bad_files_are_errors_naming_them() {
     let dir = tempfile::tempdir().unwrap();
     let model = known_factor_model(Layout::default(), &[0.2]);
     let path = dir.path().join("t.bsdf");
-    to_tensor_file(&model, &small())
-        .unwrap()
-        .write(&path, false)
-        .unwrap();
+    export(&model, &small(), &path);
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
     let e = Table::read(&path, None).unwrap_err().to_string();
@@ -123,10 +122,7 @@ fn eval_gives_a_spectral_file_s_values_at_wavelengths_and_refuses_an_rgb_file() 
             spectral,
             ..small()
         };
-        to_tensor_file(&model, &opts)
-            .unwrap()
-            .write(path, false)
-            .unwrap();
+        export(&model, &opts, path);
     }
     let brdf = RglBrdf::read(&spectral).unwrap();
     let nodes = brdf.wavelengths().unwrap().to_vec();
@@ -185,10 +181,7 @@ fn an_anisotropic_export_reads_back_as_a_utia_table_of_its_model() {
     let model = npf::synth_aniso::known_model();
     assert!(!model.layout.is_isotropic());
     let path = dir.path().join("a.bsdf");
-    to_tensor_file(&model, &small())
-        .unwrap()
-        .write(&path, false)
-        .unwrap();
+    export(&model, &small(), &path);
     let Table::Utia(table) = Table::read(&path, None).unwrap() else {
         panic!("an anisotropic .bsdf reads as a UTIA table")
     };

@@ -284,19 +284,21 @@ mod tests {
         }
     }
 
+    /// The midpoints of an n x n grid on the unit square.
+    fn midpoints(n: usize) -> impl Iterator<Item = [f64; 2]> {
+        let m = move |a: usize| (a as f64 + 0.5) / n as f64;
+        (0..n).flat_map(move |a| (0..n).map(move |c| [m(a), m(c)]))
+    }
+
     #[test]
     fn the_density_integrates_to_one() {
         let (h, w) = (5, 6);
         let warp = Warp2D::new(&bumpy(h, w, 0.4), h, w).unwrap();
         let b = blend(&[], &[]);
         let n = 400;
-        let mut sum = 0.0;
-        for a in 0..n {
-            for c in 0..n {
-                let u = [(a as f64 + 0.5) / n as f64, (c as f64 + 0.5) / n as f64];
-                sum += warp.invert(u, &b).1 / (n * n) as f64;
-            }
-        }
+        let sum: f64 = midpoints(n)
+            .map(|u| warp.invert(u, &b).1 / (n * n) as f64)
+            .sum();
         assert!((sum - 1.0).abs() < 1e-4, "{sum}");
     }
 
@@ -312,13 +314,10 @@ mod tests {
         let b = blend(&[], &[]);
         let n = 200;
         let mut mean = 0.0;
-        for a in 0..n {
-            for c in 0..n {
-                let s = [(a as f64 + 0.5) / n as f64, (c as f64 + 0.5) / n as f64];
-                let (u, p) = warp.sample(s, &b);
-                assert!((p - 2.0 * u[0]).abs() < 1e-9);
-                mean += u[0];
-            }
+        for s in midpoints(n) {
+            let (u, p) = warp.sample(s, &b);
+            assert!((p - 2.0 * u[0]).abs() < 1e-9);
+            mean += u[0];
         }
         mean /= (n * n) as f64;
         assert!((mean - 2.0 / 3.0).abs() < 1e-4, "{mean}");
