@@ -197,7 +197,7 @@ def bsdf_file(request, tmp_path_factory):
     elif request.param == "random-anisotropic":
         random_file(path, rng, np.linspace(-np.pi, np.pi, 5), np.radians([0, 30, 60, 87]))
     else:
-        from test_mitsuba_bsdf import two_lobe_model
+        from _bsdf_scene import two_lobe_model
 
         model = d / "two-lobe.json"
         two_lobe_model(model)
@@ -249,7 +249,7 @@ def spectral_file(request, tmp_path_factory):
     elif request.param == "random-spectral-anisotropic":
         random_file(path, rng, np.linspace(-np.pi, np.pi, 4), np.radians([0, 40, 80]), wavelengths=SPECTRAL_NODES)
     else:
-        from test_mitsuba_bsdf import two_lobe_model
+        from _bsdf_scene import two_lobe_model
 
         model = d / "two-lobe.json"
         two_lobe_model(model)

@@ -14,7 +14,7 @@ use std::time::Instant;
 pub struct ExportArgs {
     /// Model file (.json or .npfb).
     pub model: PathBuf,
-    /// Output file; its extension picks the format: .bsdf (RGL tensor file, Mitsuba 3 / pbrt-v4),
+    /// Output file; its extension picks the format: .bsdf (RGL tensor file, Mitsuba 3; pbrt-v4 with --spectral),
     /// .binary (MERL table), .glsl (GLSL eval/pdf/sample functions), .h (C99 header with the
     /// same three functions) or .brdf (BRDF Explorer analytic file).
     #[arg(short, long)]
